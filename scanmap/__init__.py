@@ -1,0 +1,34 @@
+"""scanmap: registration, 2.5D height/occupancy mapping and obstacle queries for the scanner.
+
+The driver's data types are re-exported, so `from scanmap import Scan` works.
+"""
+
+from scanmap_driver import (
+    CalibrationError,
+    DeviceError,
+    MapError,
+    RecordingError,
+    RegistrationError,
+    Scan,
+    ScanError,
+    ScanmapError,
+    ScannerModel,
+    SceneError,
+    __version__,
+    reference_scanner,
+)
+
+__all__ = [
+    "CalibrationError",
+    "DeviceError",
+    "MapError",
+    "RecordingError",
+    "RegistrationError",
+    "Scan",
+    "ScanError",
+    "ScanmapError",
+    "ScannerModel",
+    "SceneError",
+    "__version__",
+    "reference_scanner",
+]

@@ -1,0 +1,1 @@
+"""Subcommands of `scanmap`: one module each, with `register(subparsers)`."""
