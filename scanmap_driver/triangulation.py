@@ -17,6 +17,7 @@ error along the image line: sigma = |dP/dv| * pixel_sigma.
 from __future__ import annotations
 
 import enum
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -168,23 +169,28 @@ def triangulate(model: ScannerModel, u: np.ndarray, v: np.ndarray,
         raise ValueError(f"u and v differ in length: {u.shape[0]} != {v.shape[0]}")
     heading = np.ascontiguousarray(np.broadcast_to(np.asarray(heading, dtype=np.float64),
                                                    u.shape))
-    cam = model.camera
-    r_hc = model.camera_mount.rotation
-    c_h = np.array(model.camera_mount.position)
-    n_h = np.array(model.laser.normal)
-    n_c = r_hc.T @ n_h
-    d_c = float(n_h @ (np.array(model.laser.origin) - c_h))
     n = u.shape[0]
     out_base = np.empty((n, 3))
     out_head = np.empty((n, 3))
     out_sigma = np.empty(n)
     out_reason = np.empty(n, dtype=np.uint8)
-    _triangulate_kernel(u, v, heading, np.array([cam.fx, cam.fy, cam.cx, cam.cy]),
-                        cam.dist_coeffs, float(cam.width), float(cam.height), r_hc, c_h, n_c,
-                        d_c, model.head_mount.pose, model.min_range, model.max_range,
-                        float(np.sin(model.min_ray_plane_angle)), model.pixel_sigma,
+    _triangulate_kernel(u, v, heading, *_kernel_constants(model),
                         out_base, out_head, out_sigma, out_reason)
     return Triangulation(out_base, out_head, out_sigma, out_reason)
+
+
+@functools.lru_cache(maxsize=32)
+def _kernel_constants(model: ScannerModel) -> tuple:
+    """The model reduced to the kernel's arguments (cached: models are frozen)."""
+    cam = model.camera
+    r_hc = model.camera_mount.rotation
+    c_h = np.array(model.camera_mount.position)
+    n_h = np.array(model.laser.normal)
+    return (np.array([cam.fx, cam.fy, cam.cx, cam.cy]), cam.dist_coeffs, float(cam.width),
+            float(cam.height), r_hc, c_h, r_hc.T @ n_h,
+            float(n_h @ (np.array(model.laser.origin) - c_h)), model.head_mount.pose,
+            model.min_range, model.max_range, float(np.sin(model.min_ray_plane_angle)),
+            model.pixel_sigma)
 
 
 def pixel_rays(model: ScannerModel, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray,

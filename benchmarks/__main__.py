@@ -1,0 +1,67 @@
+"""Run every benchmark module and write results/latest.json, latest.md and latest.png.
+
+Usage: python -m benchmarks [--quick] [--only TOPIC ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import pkgutil
+import platform
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import benchmarks
+from benchmarks.report import markdown_table, speed_error_plot
+from scanmap_driver.files import atomic_path, write_json
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmarks; returns 1 if any module failed."""
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="small sizes, for CI")
+    parser.add_argument("--only", nargs="*", default=None, help="topics, e.g. triangulation")
+    parser.add_argument("--out", type=Path, default=RESULTS)
+    args = parser.parse_args(argv)
+    rows, failures = [], []
+    for info in sorted(pkgutil.iter_modules(benchmarks.__path__), key=lambda m: m.name):
+        if not info.name.startswith("bench_"):
+            continue
+        topic = info.name.removeprefix("bench_")
+        if args.only is not None and topic not in args.only:
+            continue
+        print(f"== {topic}", flush=True)
+        start = time.perf_counter()
+        try:
+            module = importlib.import_module(f"benchmarks.{info.name}")
+            new_rows = module.run(quick=args.quick)
+        except Exception:  # a failing module is reported, the others still run
+            failures.append(topic)
+            traceback.print_exc()
+            continue
+        for row in new_rows:
+            row.setdefault("topic", topic)
+        rows.extend(new_rows)
+        print(markdown_table(new_rows))
+        print(f"   ({time.perf_counter() - start:.1f} s)", flush=True)
+    result = {"created": time.strftime("%Y-%m-%dT%H:%M:%S"), "quick": args.quick,
+              "machine": {"python": sys.version.split()[0], "platform": platform.platform(),
+                          "processor": platform.processor()},
+              "failed": failures, "rows": rows}
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_json(args.out / "latest.json", result)
+    with atomic_path(args.out / "latest.md") as tmp:
+        tmp.write_text(markdown_table(rows) + "\n")
+    speed_error_plot(rows, args.out / "latest.png")
+    print(f"wrote {args.out}/latest.json, latest.md, latest.png")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

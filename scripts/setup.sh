@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Set up scanmap on a fresh machine (idempotent; fast when nothing changed):
+#   1. the system library libusb-1.0-0 that Open3D loads,
+#   2. a virtual environment in .venv,
+#   3. the package (editable) with its dev, peers and bench extras.
+# Needs Python >= 3.11 with pip; apt for the system library (root, or sudo without a
+# password; otherwise it prints the exact command to run).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PYTHON=${PYTHON:-python3}
+
+apt_install() {
+  if [ "$(id -u)" = 0 ]; then
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$@"
+  elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then
+    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$@"
+  else
+    echo "scanmap setup: please run:  sudo apt-get install -y $*" >&2
+    exit 1
+  fi
+}
+
+if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then
+  echo "scanmap setup: installing libusb-1.0-0 (needed by Open3D)"
+  apt_install libusb-1.0-0
+fi
+
+if [ ! -x .venv/bin/python ]; then
+  if ! "$PYTHON" -m venv --help >/dev/null 2>&1; then
+    apt_install python3-venv
+  fi
+  echo "scanmap setup: creating .venv"
+  "$PYTHON" -m venv .venv
+fi
+
+stamp=.venv/.scanmap-installed
+want=$(sha256sum pyproject.toml | cut -d' ' -f1)
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+  echo "scanmap setup: installing scanmap and its dependencies into .venv"
+  .venv/bin/python -m pip install --quiet --upgrade pip
+  .venv/bin/python -m pip install --quiet -e ".[dev,peers,bench]"
+  echo "$want" > "$stamp"
+fi
+.venv/bin/python -c "import open3d, cv2, numba, scanmap" || {
+  echo "scanmap setup: the installed environment does not import; see the errors above" >&2
+  exit 1
+}

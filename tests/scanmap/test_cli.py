@@ -1,0 +1,36 @@
+"""The command line's shell: --help and --version."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+import scanmap
+from scanmap.cli import main
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out.strip() == f"scanmap {scanmap.__version__}"
+
+
+def test_help_lists_subcommands_and_runs_as_module():
+    result = subprocess.run([sys.executable, "-m", "scanmap", "--help"], capture_output=True,
+                            text=True, check=True)
+    assert "usage: scanmap" in result.stdout
+
+
+def test_no_command_prints_help_and_fails(capsys):
+    assert main([]) == 2
+    assert "usage: scanmap" in capsys.readouterr().out
+
+
+def test_reexports_driver_types():
+    from scanmap import Scan
+    from scanmap_driver.scan import Scan as DriverScan
+
+    assert Scan is DriverScan
