@@ -1,0 +1,179 @@
+"""Trajectories: TUM text files and the error measures used against a reference.
+
+TUM format (one pose per line): `t tx ty tz qx qy qz qw`, `#` starts a comment. Errors:
+ATE (absolute trajectory error, RMSE of positions after an optional SE(2)/SE(3)
+alignment: Umeyama/Horn least squares) and relative errors over segments of a given
+travelled length (1 m by default), which measure local drift without alignment.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from scanmap_driver.errors import MapError
+from scanmap_driver.files import atomic_path
+from scanmap_driver.transforms import (
+    invert_pose,
+    make_pose,
+    quaternion_to_rotation,
+    rotation_to_quaternion,
+)
+
+Alignment = Literal["se3", "se2", "none"]
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Timestamped poses: times (N,) s, poses (N, 4, 4) float64 (base_link in map)."""
+
+    times: np.ndarray
+    poses: np.ndarray
+
+    def __post_init__(self) -> None:
+        times = np.asarray(self.times, dtype=np.float64).reshape(-1)
+        poses = np.asarray(self.poses, dtype=np.float64)
+        if poses.shape != (times.size, 4, 4):
+            raise MapError(f"Trajectory: poses must be ({times.size}, 4, 4), got {poses.shape}")
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "poses", poses)
+
+    def __len__(self) -> int:
+        return int(self.times.size)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(N, 3) translations."""
+        return self.poses[:, :3, 3]
+
+
+def write_tum(path: str | os.PathLike[str], trajectory: Trajectory) -> None:
+    """Write `trajectory` as TUM text, atomically (full float64 precision)."""
+    rows = [f"{t:.9f} " + " ".join(f"{v:.17g}" for v in
+                                    (*pose[:3, 3], *rotation_to_quaternion(pose[:3, :3])))
+            for t, pose in zip(trajectory.times, trajectory.poses, strict=True)]
+    with atomic_path(path) as tmp:
+        tmp.write_text("# t tx ty tz qx qy qz qw\n" + "".join(r + "\n" for r in rows))
+
+
+def read_tum(path: str | os.PathLike[str]) -> Trajectory:
+    """Read a TUM trajectory; MapError names the file and line of a malformed entry."""
+    try:
+        lines = Path(path).read_text().splitlines()
+    except FileNotFoundError:
+        raise MapError(f"{path}: file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MapError(f"{path}: not a readable TUM trajectory ({exc})") from None
+    times, poses = [], []
+    for number, line in enumerate(lines, start=1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        try:
+            values = np.array(text.replace(",", " ").split(), dtype=np.float64)
+        except ValueError:
+            raise MapError(f"{path}:{number}: non-numeric field in {line!r}") from None
+        if values.size != 8:
+            raise MapError(f"{path}:{number}: expected 8 fields (t tx ty tz qx qy qz qw), "
+                           f"got {values.size}")
+        if not np.isfinite(values).all():
+            raise MapError(f"{path}:{number}: non-finite value")
+        norm = np.linalg.norm(values[4:])
+        if abs(norm - 1.0) > 1e-3:
+            raise MapError(f"{path}:{number}: quaternion norm {norm:.6f} is not 1")
+        times.append(values[0])
+        poses.append(make_pose(quaternion_to_rotation(values[4:]), values[1:4]))
+    return Trajectory(np.array(times), np.array(poses).reshape(-1, 4, 4))
+
+
+def align_points(source: np.ndarray, target: np.ndarray, mode: Alignment = "se3") -> np.ndarray:
+    """4x4 rigid transform T minimising sum |T source_i - target_i|^2 (Umeyama, no scale).
+
+    mode "se2" rotates about z only (and translates in x, y, z); "none" returns identity.
+    """
+    source = np.asarray(source, dtype=np.float64)
+    target = np.asarray(target, dtype=np.float64)
+    if mode == "none":
+        return np.eye(4)
+    if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3:
+        raise MapError(f"align_points: need two (N, 3) arrays, got {source.shape} and "
+                       f"{target.shape}")
+    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
+    dims = 2 if mode == "se2" else 3
+    cross = (target - mu_t)[:, :dims].T @ (source - mu_s)[:, :dims]
+    u, _, vt = np.linalg.svd(cross)
+    fix = np.eye(dims)
+    fix[-1, -1] = np.sign(np.linalg.det(u @ vt)) or 1.0
+    rotation = np.eye(3)
+    rotation[:dims, :dims] = u @ fix @ vt
+    return make_pose(rotation, mu_t - rotation @ mu_s)
+
+
+def ate_rmse(estimate: np.ndarray, reference: np.ndarray, align: Alignment = "se3") -> float:
+    """RMSE (m) of positions of (N, 4, 4) `estimate` against `reference` after alignment."""
+    estimate, reference = _matched(estimate, reference)
+    transform = align_points(estimate[:, :3, 3], reference[:, :3, 3], align)
+    moved = estimate[:, :3, 3] @ transform[:3, :3].T + transform[:3, 3]
+    return float(np.sqrt(np.mean(np.sum((moved - reference[:, :3, 3]) ** 2, axis=1))))
+
+
+@dataclass(frozen=True)
+class RelativeErrors:
+    """Errors of relative motions over segments of (about) `length` metres of travel.
+
+    translation (K,) m and rotation (K,) rad: |error of the motion from pose i to pose j|,
+    with j the first pose at least `length` further along the reference path.
+    travelled (K,): the reference path length of each segment.
+    """
+
+    length: float
+    translation: np.ndarray
+    rotation: np.ndarray
+    travelled: np.ndarray
+
+    @property
+    def mean_translation(self) -> float:
+        """Mean translational error (m) of the segments (NaN if none)."""
+        return float(self.translation.mean()) if self.translation.size else float("nan")
+
+    @property
+    def per_metre(self) -> float:
+        """Translational drift: total segment error over total segment length (m/m)."""
+        return float(self.translation.sum() / self.travelled.sum()) if self.travelled.size \
+            else float("nan")
+
+
+def relative_errors(estimate: np.ndarray, reference: np.ndarray,
+                    length: float = 1.0) -> RelativeErrors:
+    """Relative pose errors over every segment of `length` m of reference travel."""
+    estimate, reference = _matched(estimate, reference)
+    if length <= 0:
+        raise MapError(f"relative_errors: length must be positive, got {length}")
+    steps = np.linalg.norm(np.diff(reference[:, :3, 3], axis=0), axis=1)
+    distance = np.concatenate([[0.0], np.cumsum(steps)])
+    ends = np.searchsorted(distance, distance + length, side="left")
+    starts = np.flatnonzero(ends < len(distance))
+    ends = ends[starts]
+    trans, rot = [], []
+    for i, j in zip(starts, ends, strict=True):
+        ref_motion = invert_pose(reference[i]) @ reference[j]
+        est_motion = invert_pose(estimate[i]) @ estimate[j]
+        error = invert_pose(ref_motion) @ est_motion
+        trans.append(np.linalg.norm(error[:3, 3]))
+        rot.append(np.arccos(np.clip((np.trace(error[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)))
+    return RelativeErrors(length, np.array(trans), np.array(rot), distance[ends] - distance[starts])
+
+
+def _matched(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    estimate = np.asarray(estimate, dtype=np.float64)
+    reference = np.asarray(reference, dtype=np.float64)
+    if estimate.shape != reference.shape or estimate.shape[1:] != (4, 4):
+        raise MapError(f"trajectories must both be (N, 4, 4), got {estimate.shape} and "
+                       f"{reference.shape}")
+    if len(estimate) == 0:
+        raise MapError("trajectories are empty")
+    return estimate, reference
