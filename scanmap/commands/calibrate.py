@@ -1,0 +1,106 @@
+"""`scanmap calibrate TARGET ...`: calibrate a part of the scanner into a scanner model file.
+
+Each target is a subcommand of its own (`camera` now; the laser plane from a wall later),
+added in `register` beside the others. They all write a `scanmap.scanner/1` file: an
+existing one is updated in place (only the calibrated part changes), otherwise a new one
+is made from the reference scanner with the calibrated part.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+from scanmap_driver import CalibrationError, ScannerModel, reference_scanner
+from scanmap_driver.calibration import CharucoBoard, Chessboard, calibrate_camera
+from scanmap_driver.files import read_json
+from scanmap_driver.scanner_model import FORMAT
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add `calibrate` and its targets."""
+    parser = subparsers.add_parser(
+        "calibrate", help="calibrate the scanner (camera intrinsics, ...)",
+        description="Calibrate a part of the scanner and write it into a scanner model "
+                    f"file ({FORMAT}).")
+    parser.set_defaults(func=lambda _args: _print_help(parser))
+    targets = parser.add_subparsers(dest="target", metavar="TARGET")
+    _register_camera(targets)
+
+
+def _print_help(parser: argparse.ArgumentParser) -> int:
+    parser.print_help()
+    return 2
+
+
+def _register_camera(targets: argparse._SubParsersAction) -> None:
+    parser = targets.add_parser(
+        "camera", help="camera intrinsics from images of a ChArUco board or chessboard",
+        description="Camera intrinsics (focal lengths, principal point, distortion) from "
+                    "images of a calibration board. Tilt the board by 20-45 deg, in a "
+                    "different direction in each image.")
+    parser.add_argument("images", nargs="+", metavar="IMAGES", help="board images")
+    parser.add_argument("--board", required=True, choices=["charuco", "chessboard"])
+    parser.add_argument("--squares", required=True, type=_squares, metavar="COLSxROWS",
+                        help="board size in squares, e.g. 5x7 (a chessboard of 12x7 "
+                             "squares has 11x6 inner corners)")
+    parser.add_argument("--square-size", required=True, type=float, metavar="M",
+                        help="side of a square (m)")
+    parser.add_argument("--marker-size", type=float, metavar="M",
+                        help="side of a ChArUco marker (m); required with --board charuco")
+    parser.add_argument("--dictionary", default="DICT_6X6_250",
+                        help="ArUco dictionary of a ChArUco board (default DICT_6X6_250)")
+    parser.add_argument("--legacy", action="store_true",
+                        help="ChArUco board in the layout of OpenCV < 4.6 (matters only for "
+                             "an even number of rows)")
+    parser.add_argument("--out", required=True, type=Path, metavar="FILE",
+                        help=f"scanner model ({FORMAT}) to update or create")
+    parser.set_defaults(func=_camera)
+
+
+def _squares(text: str) -> tuple[int, int]:
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not match:
+        raise argparse.ArgumentTypeError(f"expected COLSxROWS such as 5x7, got {text!r}")
+    return int(match[1]), int(match[2])
+
+
+def _camera(args: argparse.Namespace) -> int:
+    if args.board == "charuco":
+        if args.marker_size is None:
+            raise CalibrationError("--marker-size: required with --board charuco")
+        board = CharucoBoard(args.squares, args.square_size, args.marker_size,
+                             args.dictionary, args.legacy)
+    else:
+        board = Chessboard(args.squares, args.square_size)
+    model, existing = _target_model(args.out)
+    result = calibrate_camera(args.images, board, frame_rate=model.camera.frame_rate)
+    cam, (sfx, sfy, scx, scy) = result.camera, result.sigma
+    print(f"calibrated from {result.image_count} of {len(args.images)} images "
+          f"({cam.width}x{cam.height}), reprojection error {result.rms:.3f} px rms")
+    print(f"  fx {cam.fx:.2f} +- {sfx:.2f}  fy {cam.fy:.2f} +- {sfy:.2f}  "
+          f"cx {cam.cx:.2f} +- {scx:.2f}  cy {cam.cy:.2f} +- {scy:.2f} px")
+    print("  distortion (k1 k2 p1 p2 k3) " + " ".join(f"{d:.5g}" for d in cam.distortion))
+    for name, rms in zip(result.images, result.per_image_rms, strict=True):
+        print(f"  {name}: {rms:.3f} px")
+    for rejected in result.rejected:
+        print(f"  rejected {rejected.name}: {rejected.reason}")
+    model.with_changes(camera=cam).save(args.out)
+    if existing:
+        print(f"updated the camera of the scanner model {args.out}")
+    else:
+        print(f"wrote {args.out}: the reference scanner with this camera (calibrate the "
+              "rest of the geometry before scanning)")
+    return 0
+
+
+def _target_model(path: Path) -> tuple[ScannerModel, bool]:
+    """The model to update: the existing file's (validated), else the reference scanner."""
+    if not path.exists():
+        return reference_scanner(), False
+    data = read_json(path, CalibrationError)
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise CalibrationError(
+            f"{path}: exists and is not a scanner model ({FORMAT}); not overwriting it")
+    return ScannerModel.from_dict(data, source=str(path)), True
