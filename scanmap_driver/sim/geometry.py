@@ -1,0 +1,240 @@
+"""Scene geometry for ray casting: triangle meshes with exact planes, in Open3D's RaycastingScene.
+
+Two things are hit: the scene (floor, boxes, cylinders) fixed in `map`, cast with Open3D,
+and the robot's own encoder disk fixed in `base_link`, intersected exactly. Every
+triangle of the scene belongs to a plane (a box face, a cylinder facet, a cap, the floor)
+stored in float64 as (n, d) with n . x = d; Open3D's float32 hits only say which plane a
+ray met, and exact points come from the planes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+
+from ..encoder_disk import EncoderDisk
+from .scene import Box, Cylinder, Scene
+
+FLOOR_MARGIN = 60.0  # m of floor beyond the scene on every side
+FACET_LENGTH = 0.02  # m: a cylinder gets a side per this much circumference
+DISK_HOLE = 0.008  # m: radius of the hole for the head's shaft
+NO_HIT = -1
+MAX_FRAME_LOOP = 64  # more poses than this: gather per row instead of a loop per pose
+
+
+@dataclass(frozen=True)
+class Planes:
+    """Triangles grouped into planes: what a ray hit, exactly."""
+
+    vertices: np.ndarray  # (V, 3) float64
+    triangles: np.ndarray  # (T, 3) int32
+    triangle_plane: np.ndarray  # (T,) int32
+    planes: np.ndarray  # (P, 4) float64: unit normal (outward) and offset d, n . x = d
+    plane_object: np.ndarray  # (P,) int32: index of the owning object (0 = floor)
+
+
+class Raycaster:
+    """Open3D ray casting over one `Planes` set, answering plane ids and exact distances."""
+
+    def __init__(self, planes: Planes) -> None:
+        self.planes = planes
+        self._scene = o3d.t.geometry.RaycastingScene()
+        self._scene.add_triangles(
+            o3d.core.Tensor(planes.vertices.astype(np.float32)),
+            o3d.core.Tensor(planes.triangles.astype(np.uint32)))
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray,
+             threads: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Plane id (NO_HIT = -1) and exact float64 distance (inf) along unit `directions`.
+
+        `origins` is (3,) for one common origin or (N, 3).
+        """
+        directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+        origins = np.broadcast_to(np.asarray(origins, dtype=np.float64), directions.shape)
+        rays = np.empty((directions.shape[0], 6), dtype=np.float32)
+        rays[:, :3] = origins
+        rays[:, 3:] = directions
+        hits = self._scene.cast_rays(o3d.core.Tensor(rays), nthreads=threads)
+        primitive = hits["primitive_ids"].numpy().astype(np.int64)
+        hit = primitive != o3d.t.geometry.RaycastingScene.INVALID_ID
+        plane = np.full(directions.shape[0], NO_HIT, dtype=np.int32)
+        plane[hit] = self.planes.triangle_plane[primitive[hit]]
+        return plane, plane_distance(self.planes.planes, plane, origins, directions)
+
+
+def plane_distance(planes: np.ndarray, plane: np.ndarray, origins: np.ndarray,
+                   directions: np.ndarray) -> np.ndarray:
+    """Exact distance along each ray to its plane (inf where plane is NO_HIT)."""
+    t = np.full(plane.shape[0], np.inf)
+    hit = plane != NO_HIT
+    p = planes[plane[hit]]
+    t[hit] = (p[:, 3] - np.einsum("ij,ij->i", p[:, :3], origins[hit])) \
+        / np.einsum("ij,ij->i", p[:, :3], directions[hit])
+    return t
+
+
+class _Builder:
+    """Accumulates triangles and planes."""
+
+    def __init__(self) -> None:
+        self.vertices: list[np.ndarray] = []
+        self.triangles: list[np.ndarray] = []
+        self.triangle_plane: list[np.ndarray] = []
+        self.planes: list[np.ndarray] = []
+        self.plane_object: list[int] = []
+        self._count = 0
+
+    def polygon(self, corners: np.ndarray, owner: int, outward: np.ndarray) -> None:
+        """A planar convex polygon (corners in order) as a triangle fan, one plane."""
+        normal = np.cross(corners[1] - corners[0], corners[2] - corners[0])
+        normal /= np.linalg.norm(normal)
+        if normal @ outward < 0.0:
+            normal = -normal
+        self._add(corners, [[0, i, i + 1] for i in range(1, len(corners) - 1)],
+                  normal, float(normal @ corners.mean(axis=0)), owner)
+
+    def _add(self, corners, triangles, normal, offset, owner) -> None:
+        plane_id = len(self.planes)
+        self.vertices.append(np.asarray(corners, dtype=np.float64))
+        tri = np.asarray(triangles, dtype=np.int32) + self._count
+        self.triangles.append(tri)
+        self.triangle_plane.append(np.full(len(tri), plane_id, dtype=np.int32))
+        self.planes.append(np.array([*normal, offset]))
+        self.plane_object.append(owner)
+        self._count += len(corners)
+
+    def build(self) -> Planes:
+        return Planes(np.vstack(self.vertices), np.vstack(self.triangles),
+                      np.concatenate(self.triangle_plane), np.vstack(self.planes),
+                      np.array(self.plane_object, dtype=np.int32))
+
+
+def box_corners(box: Box) -> np.ndarray:
+    """(8, 3) corners: bottom four then top four, counter-clockwise."""
+    hx, hy, hz = 0.5 * np.array(box.size)
+    c, s = math.cos(box.yaw), math.sin(box.yaw)
+    local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    xy = local @ np.array([[c, s], [-s, c]]) + np.array(box.center[:2])
+    z0, z1 = box.center[2] - hz, box.center[2] + hz
+    return np.vstack([np.column_stack([xy, np.full(4, z0)]),
+                      np.column_stack([xy, np.full(4, z1)])])
+
+
+def _add_box(builder: _Builder, box: Box, owner: int) -> None:
+    corners = box_corners(box)
+    middle = corners.mean(axis=0)
+    faces = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
+    for face in faces:
+        quad = corners[face]
+        builder.polygon(quad, owner, quad.mean(axis=0) - middle)
+
+
+def cylinder_sides(cylinder: Cylinder) -> int:
+    """Number of flat sides the cylinder is built from."""
+    return int(np.clip(math.ceil(2.0 * math.pi * cylinder.radius / FACET_LENGTH), 16, 96))
+
+
+def _add_cylinder(builder: _Builder, cylinder: Cylinder, owner: int) -> None:
+    n = cylinder_sides(cylinder)
+    # Vertices on a circle of radius r / cos(pi/n): the flat sides touch the true circle.
+    r = cylinder.radius / math.cos(math.pi / n)
+    angles = 2.0 * math.pi * np.arange(n) / n
+    cx, cy, cz = cylinder.center
+    ring = np.column_stack([cx + r * np.cos(angles), cy + r * np.sin(angles)])
+    z0, z1 = cz - 0.5 * cylinder.height, cz + 0.5 * cylinder.height
+    for i in range(n):
+        j = (i + 1) % n
+        quad = np.array([[*ring[i], z0], [*ring[j], z0], [*ring[j], z1], [*ring[i], z1]])
+        outward = np.append(0.5 * (ring[i] + ring[j]) - (cx, cy), 0.0)
+        builder.polygon(quad, owner, outward)
+    for z, up in ((z0, -1.0), (z1, 1.0)):
+        cap = np.column_stack([ring, np.full(n, z)])
+        builder.polygon(cap, owner, np.array([0.0, 0.0, up]))
+
+
+def scene_planes(scene: Scene) -> Planes:
+    """The scene's floor and objects as planes; object i of the scene is owner i + 1."""
+    builder = _Builder()
+    low, high = scene.bounds()
+    x0, y0 = low - FLOOR_MARGIN
+    x1, y1 = high + FLOOR_MARGIN
+    builder.polygon(np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]]),
+                    0, np.array([0.0, 0.0, 1.0]))
+    for index, obj in enumerate(scene.objects, start=1):
+        if isinstance(obj, Box):
+            _add_box(builder, obj, index)
+        else:
+            _add_cylinder(builder, obj, index)
+    return builder.build()
+
+
+def disk_distance(disk: EncoderDisk, origins_base: np.ndarray,
+                  directions_base: np.ndarray) -> np.ndarray:
+    """Distance along rays in `base_link` to the encoder disk (inf where they miss it).
+
+    The disk is the flat ring between the shaft hole and `outer_radius` at the disk's
+    height, exact (no tessellation), seen from above by the camera and from below by
+    the laser.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (disk.height - origins_base[:, 2]) / directions_base[:, 2]
+    x = origins_base[:, 0] + t * directions_base[:, 0]
+    y = origins_base[:, 1] + t * directions_base[:, 1]
+    radius2 = x * x + y * y
+    hit = (t > 0.0) & (radius2 <= disk.outer_radius ** 2) & (radius2 >= DISK_HOLE ** 2)
+    return np.where(hit, t, np.inf)
+
+
+def transform_per_frame(poses: np.ndarray, frame: np.ndarray, vectors: np.ndarray,
+                        translate: bool) -> np.ndarray:
+    """Apply pose `poses[frame[i]]` (F, 4, 4) to row i of `vectors` (N, 3).
+
+    translate=False rotates directions only. Loops over frames with dense products.
+    """
+    if poses.shape[0] > MAX_FRAME_LOOP:
+        out = np.einsum("nij,nj->ni", poses[frame, :3, :3], vectors)
+        return out + poses[frame, :3, 3] if translate else out
+    order = None if np.all(frame[1:] >= frame[:-1]) else np.argsort(frame, kind="stable")
+    ordered = vectors if order is None else vectors[order]
+    bounds = np.searchsorted(frame if order is None else frame[order],
+                             np.arange(poses.shape[0] + 1))
+    out = np.empty((vectors.shape[0], 3))
+    for f in range(poses.shape[0]):
+        a, b = bounds[f], bounds[f + 1]
+        if b > a:
+            np.matmul(ordered[a:b], poses[f, :3, :3].T, out=out[a:b])
+            if translate:
+                out[a:b] += poses[f, :3, 3]
+    if order is not None:
+        out[order] = out.copy()
+    return out
+
+
+class World:
+    """The scene (in `map`) and the robot's encoder disk (in `base_link`) for ray casting,
+    with each scene plane's colour."""
+
+    def __init__(self, scene: Scene, disk: EncoderDisk) -> None:
+        self.scene = scene
+        self.disk = disk
+        self.world = Raycaster(scene_planes(scene))
+        colors = np.array([scene.floor_color, *(obj.color for obj in scene.objects)],
+                          dtype=np.float64) / 255.0
+        self.plane_albedo = colors[self.world.planes.plane_object]  # (P, 3) RGB 0..1
+
+    def first_hits(self, origins: np.ndarray, directions: np.ndarray, frame: np.ndarray,
+                   map_from: np.ndarray, base_from: np.ndarray, threads: int = 0
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Plane id and distance in the scene, and distance to the disk, for rays given in
+        a frame that `map_from[frame]` and `base_from[frame]` (F, 4, 4) carry into `map`
+        and `base_link` (rigidly, so distances are the same in all three)."""
+        origins = np.broadcast_to(np.asarray(origins, dtype=np.float64), directions.shape)
+        plane, t = self.world.cast(transform_per_frame(map_from, frame, origins, True),
+                                   transform_per_frame(map_from, frame, directions, False),
+                                   threads)
+        t_disk = disk_distance(self.disk, transform_per_frame(base_from, frame, origins, True),
+                               transform_per_frame(base_from, frame, directions, False))
+        return plane, t, t_disk
