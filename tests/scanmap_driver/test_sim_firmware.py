@@ -1,0 +1,248 @@
+"""The simulated firmware, spoken to byte by byte through pyserial on its pseudo-terminal.
+
+The replies are checked against the protocol document (docs/motor_protocol.md) with a
+checksum computed here, and the head's motion against the motor model's closed form.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+
+import numpy as np
+import pytest
+import serial
+
+from scanmap_driver.sim.firmware import SimulatedFirmware
+
+
+def xor_checksum(text: str) -> str:
+    return f"{functools.reduce(lambda a, b: a ^ b, text.encode(), 0):02X}"
+
+
+class Terminal:
+    """A person at a serial monitor: writes lines, reads lines, checks the checksums."""
+
+    def __init__(self, port: str) -> None:
+        self.link = serial.Serial(port, 115200, timeout=0.05)
+        self.events: list[str] = []
+
+    def send(self, data: bytes) -> None:
+        self.link.write(data)
+
+    def line(self, timeout: float = 2.0) -> str | None:
+        """The next reply body (checksum verified and removed); events are set aside."""
+        deadline = time.monotonic() + timeout
+        buffer = b""
+        while time.monotonic() < deadline:
+            buffer += self.link.read(1)
+            if buffer.endswith(b"\n"):
+                text = buffer[:-1].decode("ascii")
+                body, star, given = text.rpartition("*")
+                assert star and given == xor_checksum(body), text
+                if body.startswith("!"):
+                    self.events.append(body)
+                    buffer = b""
+                    continue
+                return body
+        return None
+
+    def ask(self, command: str) -> str | None:
+        self.send(command.encode() + b"\n")
+        return self.line()
+
+
+@pytest.fixture
+def firmware():
+    with SimulatedFirmware() as fw:
+        yield fw
+
+
+@pytest.fixture
+def terminal(firmware):
+    term = Terminal(firmware.port)
+    assert term.line(timeout=0.5) is None  # booting (reset by the port opening) ...
+    assert term.events[0].startswith("! BOOT scanmap-motor proto=1 ")  # ... then announced
+    yield term
+    term.link.close()
+
+
+def test_opening_the_port_resets_the_controller_like_an_uno(firmware):
+    term = Terminal(firmware.port)
+    assert term.ask("HELLO") is None  # swallowed while booting
+    term.line(timeout=0.5)
+    assert term.events == ["! BOOT scanmap-motor proto=1 fw=1.0.0-sim drive=dc"]
+    assert term.ask("HELLO").startswith("OK HELLO")
+    term.ask("RUN CCW 500")
+    term.link.close()
+    time.sleep(0.1)  # a reopen within one firmware tick would go unnoticed
+    term = Terminal(firmware.port)
+    term.line(timeout=0.5)
+    assert firmware.state == "STOP" and term.ask("STATUS").startswith("OK STATUS state=STOP")
+    term.link.close()
+
+
+def test_hello(terminal):
+    reply = terminal.ask("HELLO")
+    words = reply.split()
+    assert words[:3] == ["OK", "HELLO", "scanmap-motor"]
+    assert {"proto=1", "drive=dc", "watchdog=1000"} <= set(words)
+
+
+def test_tag_is_echoed_and_host_checksum_verified(terminal):
+    body = "#4242 STATUS"
+    assert terminal.ask(f"{body}*{xor_checksum(body)}").startswith("#4242 OK STATUS state=STOP")
+    assert terminal.ask(f"{body}*00" if xor_checksum(body) != "00" else f"{body}*01") == \
+        "ERR CHECKSUM expected " + xor_checksum(body) + ", got '00'"
+
+
+@pytest.mark.parametrize(("line", "reply"), [
+    (b"FLY\n", "ERR UNKNOWN FLY"),
+    (b"RUN CCW\n", "ERR ARGS RUN takes 2 argument(s)"),
+    (b"RUN UP 500\n", "ERR ARGS RUN <CCW|CW> <0..1000>"),
+    (b"RUN CCW 1001\n", "ERR ARGS RUN <CCW|CW> <0..1000>"),
+    (b"WATCHDOG 50\n", "ERR ARGS WATCHDOG <100..5000>"),
+    (b"PI\xffNG\n", "ERR BAD_BYTE byte outside printable ASCII"),
+    (b"X" * 80 + b"\n", "ERR TOO_LONG line over 63 characters"),
+])
+def test_damaged_or_wrong_requests_are_refused_and_the_link_recovers(terminal, firmware, line,
+                                                                      reply):
+    assert terminal.ask("HELLO").startswith("OK HELLO")
+    terminal.send(line)
+    assert terminal.line() == reply
+    assert firmware.state == "STOP"
+    assert terminal.ask("STATUS").startswith("OK STATUS state=STOP")
+
+
+def test_crlf_and_split_writes_are_one_line(terminal):
+    terminal.send(b"PI")
+    time.sleep(0.05)
+    terminal.send(b"NG\r\n")
+    assert terminal.line().startswith("OK PING t=")
+
+
+def run_for(terminal: Terminal, seconds: float, command: str = "RUN CCW 800") -> None:
+    """Drive the motor for `seconds`, feeding the watchdog like the host's heartbeat."""
+    assert terminal.ask(command).startswith("OK RUN")
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        time.sleep(0.1)
+        assert terminal.ask("PING").startswith("OK PING")
+
+
+def test_motor_speed_slow_start_and_ripple(terminal, firmware):
+    """Speed 800 is duty 0.8 of the simulator's DC motor: its nominal speed on average,
+    a slow start, and a speed that ripples."""
+    p = firmware.motor.params
+    nominal = p.full_speed * (0.8 - p.dead_band) / (1.0 - p.dead_band)
+    start = time.monotonic()
+    run_for(terminal, 2.6)
+    t = np.linspace(start + 1.0, time.monotonic() - 0.05, 300)
+    angle = np.array([firmware.angle_at(x) for x in t])
+    mean_speed = (angle[-1] - angle[0]) / (t[-1] - t[0])
+    assert mean_speed == pytest.approx(nominal, rel=0.1)
+    assert 1.4 < 2 * math.pi / mean_speed < 2.3  # about 2 s per revolution
+    # slow start: in the first 0.3 s the head turns far less than at steady speed
+    early = firmware.angle_at(start + 0.3) - firmware.angle_at(start)
+    assert early < 0.3 * mean_speed * 0.6
+    # ripple: the speed varies by a few per cent
+    speed = np.diff(angle) / np.diff(t)
+    relative = speed / mean_speed - 1
+    assert 0.01 < np.std(relative) < 0.2
+
+def test_cw_turns_the_heading_down_and_brake_stops_it(terminal, firmware):
+    a0 = firmware.angle
+    run_for(terminal, 0.8, "RUN CW 800")
+    assert firmware.angle < a0 - 0.5
+    assert terminal.ask("BRAKE") == "OK BRAKE"
+    time.sleep(0.3)
+    a1 = firmware.angle
+    time.sleep(0.2)
+    assert firmware.angle == pytest.approx(a1, abs=1e-3)
+    assert abs(firmware.angular_velocity) < 1e-3
+
+
+def test_status_reports_ramped_speed_and_target(terminal):
+    terminal.ask("RUN CCW 1000")
+    fields = dict(w.split("=") for w in terminal.ask("STATUS").split()[2:])
+    assert fields["state"] == "RUN" and fields["target"] == "1000"
+    assert int(fields["speed"]) < 1000  # ramping: full speed takes 0.5 s
+    time.sleep(0.6)
+    fields = dict(w.split("=") for w in terminal.ask("STATUS").split()[2:])
+    assert fields["speed"] == "1000" and fields["faults"] == "NONE"
+
+
+def test_watchdog_brakes_a_silent_host_and_latches(terminal, firmware):
+    assert terminal.ask("WATCHDOG 200") == "OK WATCHDOG ms=200"
+    assert terminal.ask("RUN CCW 800").startswith("OK RUN")
+    time.sleep(0.6)  # the host says nothing
+    assert firmware.state == "BRAKE" and firmware.faults == ["WATCHDOG"]
+    assert terminal.ask("RUN CCW 800") == "ERR FAULT WATCHDOG"
+    assert "! FAULT WATCHDOG" in terminal.events
+    assert terminal.ask("CLEAR") == "OK CLEAR"
+    assert terminal.ask("RUN CCW 800").startswith("OK RUN")
+
+
+def test_watchdog_is_quiet_while_the_motor_is_stopped(terminal, firmware):
+    terminal.ask("WATCHDOG 100")
+    time.sleep(0.4)
+    assert firmware.faults == []
+
+
+def test_stall_freezes_the_head_while_driven(terminal, firmware):
+    run_for(terminal, 0.5)
+    firmware.stalled = True
+    time.sleep(0.05)
+    a0 = firmware.angle
+    run_for(terminal, 0.3, "RUN CCW 800")
+    assert firmware.driven and firmware.angle == pytest.approx(a0, abs=1e-6)
+
+
+def test_silence_stops_replies_and_the_watchdog_stops_the_motor(terminal, firmware):
+    terminal.ask("WATCHDOG 200")
+    terminal.ask("RUN CCW 800")
+    firmware.silent = True
+    assert terminal.ask("PING") is None
+    time.sleep(0.3)
+    assert firmware.state == "BRAKE" and "WATCHDOG" in firmware.faults
+
+
+def test_disappearance_breaks_the_port_and_the_watchdog_stops_the_motor(terminal, firmware):
+    terminal.ask("WATCHDOG 200")
+    terminal.ask("RUN CCW 800")
+    firmware.disappear()
+    with pytest.raises((serial.SerialException, OSError)):
+        for _ in range(20):
+            terminal.send(b"PING\n")
+            terminal.link.read(1)
+    time.sleep(0.4)
+    assert firmware.state == "BRAKE" and "WATCHDOG" in firmware.faults
+    assert abs(firmware.angular_velocity) < 0.05
+
+
+def test_driver_fault_and_reset_are_announced(terminal, firmware):
+    run_for(terminal, 0.2)
+    firmware.driver_fault()
+    assert terminal.ask("STATUS").split()[2:7] == [
+        "state=STOP", "dir=CCW", "speed=0", "target=0", "faults=DRIVER"]
+    assert "! FAULT DRIVER" in terminal.events
+    firmware.reset()
+    assert terminal.ask("STATUS").startswith("OK STATUS state=STOP")
+    assert sum(e.startswith("! BOOT") for e in terminal.events) == 2
+
+
+def test_injected_garbage_and_fragments_reach_the_host(terminal, firmware):
+    firmware.inject(b"\x00\xffnoise\n")
+    firmware.fragment_replies = True
+    terminal.send(b"PING\n")
+    raw = terminal.link.read_until(b"\n") + terminal.link.read_until(b"\n")
+    assert raw.startswith(b"\x00\xffnoise\n") and b"OK PING" in raw
+
+
+def test_angle_history_interpolates_the_motion(firmware, terminal):
+    run_for(terminal, 0.4)
+    now = time.monotonic()
+    samples = [firmware.angle_at(now - dt) for dt in (0.3, 0.2, 0.1, 0.0)]
+    assert np.all(np.diff(samples) > 0)
+    assert firmware.angle_at(now - 100.0) == pytest.approx(firmware.angle_at(0.0))
