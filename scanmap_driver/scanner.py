@@ -25,19 +25,24 @@ from __future__ import annotations
 import collections
 import logging
 import math
+import os
 import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from .camera import Camera, Frame
-from .errors import DeviceError, ScanError
-from .motor import MotorController, MotorStatus
+from .errors import DeviceError, RecordingError, ScanError
+from .motor import MotorController
 from .scan import Scan
-from .transforms import wrap_angle
+from .scanner_model import ScannerModel
+from .transforms import pose_to_se2, wrap_angle
+
+if TYPE_CHECKING:
+    from .recording import RecordingWriter
 
 log = logging.getLogger(__name__)
 
@@ -109,9 +114,11 @@ class ScanResult:
     scan: the points; summary: the assembler's account of them (None without one).
     frames: every frame (when ScanSettings.keep_frames). frame_times,
     headings: per frame taken (heading NaN where undecoded). coverage: heading swept (rad).
-    motor_log: STATUS replies. dropped_frames: frames the camera lost; overflow_frames:
-    frames the grabber dropped because the loop fell behind. fault: None, or why the sweep
-    ended early (the ScanFailed reason).
+    motor_log: what was sent to the motor controller and its STATUS replies, as dicts with
+    "t" (monotonic s), "command" ("run", "brake", "status") and "duty" (-1..1, CCW
+    positive) or the status fields; the recording's motor log. dropped_frames: frames the
+    camera lost; overflow_frames: frames the grabber dropped because the loop fell behind.
+    fault: None, or why the sweep ended early (the ScanFailed reason).
     """
 
     scan: Scan
@@ -120,7 +127,7 @@ class ScanResult:
     frame_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     headings: np.ndarray = field(default_factory=lambda: np.zeros(0))
     coverage: float = 0.0
-    motor_log: list[MotorStatus] = field(default_factory=list)
+    motor_log: list[dict] = field(default_factory=list)
     dropped_frames: int = 0
     overflow_frames: int = 0
     undecoded_frames: int = 0
@@ -131,8 +138,8 @@ class ScanResult:
 class ScanFailed(DeviceError):
     """A scan ended by a fault; the motor was stopped first.
 
-    reason: "stall", "camera", "motor", "time_limit" or "return" (the scan is complete but
-    the head did not get back); result: the partial data.
+    reason: "stall", "camera", "motor", "time_limit", "return" (the scan is complete but
+    the head did not get back) or "cancelled"; result: the partial data.
     """
 
     def __init__(self, reason: str, message: str, result: ScanResult) -> None:
@@ -285,7 +292,7 @@ class _Sweep:
         self.frames: list[Frame] = []
         self.times: list[float] = []
         self.headings: list[float] = []
-        self.motor_log: list[MotorStatus] = []
+        self.motor_log: list[dict] = []
         self.undecoded = 0
         self.started = time.monotonic()
         self.dropped_at_start = 0
@@ -316,6 +323,7 @@ class Scanner:
         self.last_result: ScanResult | None = None
         self._grabber: FrameGrabber | None = None
         self._index = 0
+        self._cancel: threading.Event | None = None
 
     def __enter__(self) -> Scanner:
         return self
@@ -330,12 +338,16 @@ class Scanner:
             self._grabber.stop()
             self._grabber = None
 
-    def scan(self, index: int | None = None, keep_running: bool = False) -> ScanResult:
+    def scan(self, index: int | None = None, keep_running: bool = False,
+             cancel: threading.Event | None = None) -> ScanResult:
         """Take one scan. Raises ScanFailed (a DeviceError) with the partial data on a fault;
         on Ctrl-C the motor is braked and KeyboardInterrupt goes on (data in last_result).
 
         keep_running: leave the motor turning after the sweep (continuous scanning).
+        cancel: when set (by another thread), the scan ends at the next frame with
+        ScanFailed("cancelled") and the motor braked.
         """
+        self._cancel = cancel
         self._index = self._index if index is None else index
         grabber = self._start_capture()
         sweep = _Sweep(self.settings, self.new_assembler() if self.new_assembler else None)
@@ -346,13 +358,13 @@ class Scanner:
             self._sweep(sweep, grabber)
             result = self.last_result = self._result(sweep, grabber, None)
             if not (self.settings.continuous and keep_running):
-                self._motor(sweep, grabber, self.motor.brake, result=result)
+                self._motor(sweep, grabber, "brake", result=result)
             if not self.settings.continuous:
                 self._return_to_start(sweep, grabber, result)
         except ScanFailed:
             raise
         except BaseException:  # Ctrl-C, a decoder or processor error: motor first
-            self.motor.stop_safely()
+            self._stop_motor(sweep)
             if result is None:
                 self.last_result = self._result(sweep, grabber, "interrupted")
             raise
@@ -375,12 +387,12 @@ class Scanner:
         while sweep.tracker.progress < target:
             now = time.monotonic()
             if now >= next_status:
-                self._motor(sweep, grabber, self._poll_motor, sweep)
+                self._motor(sweep, grabber, "status")
                 next_status = now + s.status_interval
             frame = self._next_frame(sweep, grabber)
             self._take(sweep, frame)
             if driven_since is None and sweep.tracker.start is not None:
-                self._motor(sweep, grabber, self.motor.run, s.direction, s.speed)
+                self._motor(sweep, grabber, "run", s.direction, s.speed)
                 driven_since = time.monotonic()
             elif driven_since is None and now - sweep.started > s.stall_time:
                 raise self._fail(sweep, grabber, "stall",
@@ -392,7 +404,10 @@ class Scanner:
 
     def _next_frame(self, sweep: _Sweep, grabber: FrameGrabber, result: ScanResult | None = None
                     ) -> Frame:
-        """The next frame, or ScanFailed("camera") when the camera failed or fell silent."""
+        """The next frame, or ScanFailed("camera") when the camera failed or fell silent
+        (ScanFailed("cancelled") when the scan was cancelled)."""
+        if self._cancel is not None and self._cancel.is_set():
+            raise self._fail(sweep, grabber, "cancelled", "cancelled", result)
         timeout = self.settings.frame_timeout
         try:
             frame = grabber.get(timeout)
@@ -404,13 +419,36 @@ class Scanner:
                              f"(after {len(sweep.times)} frames of this scan)", result)
         return frame
 
-    def _motor(self, sweep: _Sweep, grabber: FrameGrabber, call: Callable[..., object],
-               *args: object, result: ScanResult | None = None) -> None:
-        """Call the motor controller; its failure becomes ScanFailed("motor")."""
+    def _motor(self, sweep: _Sweep, grabber: FrameGrabber, command: str, *args: Any,
+               result: ScanResult | None = None) -> None:
+        """Send "run" (direction, speed), "brake" or "status" to the motor controller and
+        log it; a failure (or a fault the controller reports) becomes ScanFailed("motor")."""
         try:
-            call(*args)
+            if command == "status":
+                status = self.motor.status()
+                sweep.motor_log.append({
+                    "t": status.host_time, "command": "status", "state": status.state,
+                    "direction": status.direction, "speed": status.speed,
+                    "target": status.target, "faults": list(status.faults)})
+                if status.faults:
+                    raise DeviceError("the motor controller reports fault(s) "
+                                      f"{','.join(status.faults)}")
+                return
+            getattr(self.motor, command)(*args)
         except DeviceError as exc:
             raise self._fail(sweep, grabber, "motor", str(exc), result) from exc
+        entry: dict[str, Any] = {"t": time.monotonic(), "command": command, "duty": 0.0}
+        if command == "run":
+            direction, speed = args
+            entry["duty"] = (1.0 if direction == "CCW" else -1.0) * speed / 1000.0
+        sweep.motor_log.append(entry)
+
+    def _stop_motor(self, sweep: _Sweep) -> str | None:
+        """Brake whatever the state of the link; log it; return why it failed, if it did."""
+        error = self.motor.stop_safely()
+        sweep.motor_log.append({"t": time.monotonic(), "command": "brake", "duty": 0.0,
+                                "ok": error is None})
+        return error
 
     def _take(self, sweep: _Sweep, frame: Frame) -> None:
         """Decode, track and assemble one frame of the sweep."""
@@ -449,12 +487,6 @@ class Scanner:
                              f"driven at {s.speed} (at {math.degrees(sweep.tracker.progress):.0f}"
                              " deg of the scan)")
 
-    def _poll_motor(self, sweep: _Sweep) -> None:
-        status = self.motor.status()
-        sweep.motor_log.append(status)
-        if status.faults:
-            raise DeviceError(f"motor controller reports fault(s) {','.join(status.faults)}")
-
     def _return_to_start(self, sweep: _Sweep, grabber: FrameGrabber,
                          result: ScanResult) -> None:
         """Turn the head back until the decoded heading is at the scan's start again.
@@ -468,7 +500,7 @@ class Scanner:
         time.sleep(0.1)  # let the brake settle before reversing
         grabber.discard()
         started = time.monotonic()
-        self._motor(sweep, grabber, self.motor.run, back, s.return_speed, result=result)
+        self._motor(sweep, grabber, "run", back, s.return_speed, result=result)
         while True:
             speed = max(-s.sign * tracker.speed, 0.0)  # progress lost per second
             if speed > 0.0:
@@ -486,13 +518,13 @@ class Scanner:
             if heading is not None and math.isfinite(heading):
                 tracker.update(frame.timestamp, heading)
             self._report("return", sweep, grabber, 0.0)
-        self._motor(sweep, grabber, self.motor.brake, result=result)
+        self._motor(sweep, grabber, "brake", result=result)
 
     # -- results and faults ------------------------------------------------------------
     def _fail(self, sweep: _Sweep, grabber: FrameGrabber, reason: str, message: str,
               result: ScanResult | None = None) -> ScanFailed:
         """Brake the motor FIRST, then keep the partial data, then describe the fault."""
-        stop_error = self.motor.stop_safely()
+        stop_error = self._stop_motor(sweep)
         if result is None:
             result = self._result(sweep, grabber, reason)
         else:
@@ -581,7 +613,7 @@ class ContinuousScanning:
     def _run(self) -> None:
         try:
             while not self._stop.is_set():
-                result = self.scanner.scan(keep_running=True)
+                result = self.scanner.scan(keep_running=True, cancel=self._stop)
                 with self._ready:
                     if len(self._queue) >= self.capacity:
                         self._queue.popleft()
@@ -590,9 +622,10 @@ class ContinuousScanning:
                     self.scans_taken += 1
                     self._ready.notify_all()
         except BaseException as exc:  # handed to the consumer
-            with self._ready:
-                self._error = exc
-                self._ready.notify_all()
+            if not (isinstance(exc, ScanFailed) and exc.reason == "cancelled"):
+                with self._ready:
+                    self._error = exc
+                    self._ready.notify_all()
         finally:
             self.scanner.motor.stop_safely()
 
@@ -613,7 +646,85 @@ class ContinuousScanning:
                 yield result
 
     def stop(self) -> None:
-        """Finish the current scan, brake the motor and end the thread."""
+        """Cancel the current scan (the motor is braked at once) and end the thread."""
         self._stop.set()
-        self._thread.join(timeout=self.scanner.settings.time_limit + 5.0)
+        if self._thread.is_alive():
+            self._thread.join(timeout=self.scanner.settings.frame_timeout + 5.0)
         self.scanner.motor.stop_safely()
+
+
+# -- the real pipeline, recordings and replay ---------------------------------------------
+
+def encoder_headings(model: ScannerModel) -> HeadingDecoder:
+    """The heading decoder of the encoder disk (`encoder.decode_heading`), each frame
+    decoded near the previous heading."""
+    from .encoder import decode_heading
+
+    previous: float | None = None
+
+    def decode(frame: Frame) -> float | None:
+        nonlocal previous
+        result = decode_heading(frame.image, model, previous=previous)
+        if not result.ok:
+            return None
+        previous = float(result.heading)
+        return previous
+
+    return decode
+
+
+class _Incomplete(Exception):
+    """Ends a ScanWriter block so that the scan is marked incomplete."""
+
+
+def write_scan(writer: RecordingWriter, result: ScanResult, origin: float,
+               exposure: float | None = None) -> None:
+    """Add a scan to a raw recording: its frames (the camera's JPEGs byte for byte when it
+    delivered them), motor log and odometry. Times become seconds since `origin`
+    (monotonic); a partial scan (result.fault) is marked incomplete."""
+    runs = [e["t"] for e in result.motor_log if e["command"] == "run"]
+    stamp = runs[0] if runs else (result.frame_times[0] if result.frame_times.size else origin)
+    try:
+        with writer.scan(stamp - origin, exposure) as out:
+            for frame in result.frames:
+                if frame.raw_jpeg is not None:
+                    out.add_jpeg(frame.raw_jpeg, frame.timestamp - origin)
+                else:
+                    out.add_image(frame.image, frame.timestamp - origin)
+            for entry in result.motor_log:
+                extra = {k: v for k, v in entry.items() if k not in ("t", "command")}
+                out.log_motor(entry["t"] - origin, entry["command"], **extra)
+            if result.scan.has_odometry:
+                out.set_odometry(pose_to_se2(result.scan.odom_start),
+                                 pose_to_se2(result.scan.odom_end))
+            if result.fault is not None:
+                raise _Incomplete
+    except _Incomplete:
+        pass
+
+
+def replay_recording(path: str | os.PathLike[str],
+                     new_assembler: Callable[[ScannerModel], Assembler] | None = None
+                     ) -> Iterator[tuple[Scan, Any]]:
+    """The scans of a raw recording through the live scanner's pipeline: each scan's
+    frames, as a `VideoFileCamera` delivers them with the recorded times, go into a fresh
+    assembler (default `assembly.ScanAssembler` of the recording's scanner model)."""
+    from .camera import EndOfStream, VideoFileCamera
+    from .recording import Recording
+
+    recording = Recording.open(path)
+    if new_assembler is None:
+        from .assembly import ScanAssembler
+        new_assembler = ScanAssembler
+    for record in recording.scans:
+        assembler = new_assembler(recording.model)
+        with VideoFileCamera(record.video, timestamps=record.frame_times) as camera:
+            for taken in range(record.frame_times.size):
+                try:
+                    frame = camera.read()
+                except EndOfStream:
+                    raise RecordingError(
+                        f"{record.video}: the video ends after {taken} of "
+                        f"{record.frame_times.size} frames (truncated?)") from None
+                assembler.add_frame(frame.image, frame.timestamp)
+        yield assembler.finish(record.index, record.odom_start, record.odom_end)

@@ -19,7 +19,6 @@ the USB cable is pulled), a stall (the head jams), a driver fault, a reset.
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import select
 import threading
@@ -265,7 +264,7 @@ class SimulatedFirmware:
         if name not in expected:
             return f"ERR UNKNOWN {name}"
         if len(args) != expected[name]:
-            return f"ERR ARGS {name} takes {expected[name]} argument(s)"
+            return "ERR ARGS wrong number of arguments"
         uptime = int((time.monotonic() - self._booted) * 1000)
         if name == "HELLO":
             self.state, self.target, self.applied, self.faults = "STOP", 0, 0.0, []

@@ -84,7 +84,11 @@ def test_one_scan_covers_a_turn_with_true_headings_and_returns_the_head():
                               - point_truth)).max() < 1e-3
         assert np.allclose(np.hypot(scan.points[:, 0], scan.points[:, 1]), WALL_RADIUS)
         assert result.fault is None and result.overflow_frames == 0
-        assert any(s.state == "RUN" and s.target == 720 for s in result.motor_log)
+        log = result.motor_log
+        assert log[0]["command"] == "status" and log[0]["state"] == "STOP"
+        assert {"command": "run", "duty": 0.72} == {k: log[1][k] for k in ("command", "duty")}
+        assert any(e["command"] == "status" and e["state"] == "RUN" and e["target"] == 720
+                   for e in log)
         # the return: braked and back at the start (reciprocating motion)
         assert wait_until(lambda: abs(fw.angular_velocity) < 1e-3, 2.0)
         assert fw.state == "BRAKE"

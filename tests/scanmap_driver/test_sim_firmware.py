@@ -6,7 +6,6 @@ checksum computed here, and the head's motion against the motor model's closed f
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 
@@ -16,41 +15,7 @@ import serial
 
 from scanmap_driver.sim.firmware import SimulatedFirmware
 
-
-def xor_checksum(text: str) -> str:
-    return f"{functools.reduce(lambda a, b: a ^ b, text.encode(), 0):02X}"
-
-
-class Terminal:
-    """A person at a serial monitor: writes lines, reads lines, checks the checksums."""
-
-    def __init__(self, port: str) -> None:
-        self.link = serial.Serial(port, 115200, timeout=0.05)
-        self.events: list[str] = []
-
-    def send(self, data: bytes) -> None:
-        self.link.write(data)
-
-    def line(self, timeout: float = 2.0) -> str | None:
-        """The next reply body (checksum verified and removed); events are set aside."""
-        deadline = time.monotonic() + timeout
-        buffer = b""
-        while time.monotonic() < deadline:
-            buffer += self.link.read(1)
-            if buffer.endswith(b"\n"):
-                text = buffer[:-1].decode("ascii")
-                body, star, given = text.rpartition("*")
-                assert star and given == xor_checksum(body), text
-                if body.startswith("!"):
-                    self.events.append(body)
-                    buffer = b""
-                    continue
-                return body
-        return None
-
-    def ask(self, command: str) -> str | None:
-        self.send(command.encode() + b"\n")
-        return self.line()
+from .serial_terminal import Terminal
 
 
 @pytest.fixture
@@ -65,7 +30,7 @@ def terminal(firmware):
     assert term.line(timeout=0.5) is None  # booting (reset by the port opening) ...
     assert term.events[0].startswith("! BOOT scanmap-motor proto=1 ")  # ... then announced
     yield term
-    term.link.close()
+    term.close()
 
 
 def test_opening_the_port_resets_the_controller_like_an_uno(firmware):
@@ -75,51 +40,12 @@ def test_opening_the_port_resets_the_controller_like_an_uno(firmware):
     assert term.events == ["! BOOT scanmap-motor proto=1 fw=1.0.0-sim drive=dc"]
     assert term.ask("HELLO").startswith("OK HELLO")
     term.ask("RUN CCW 500")
-    term.link.close()
+    term.close()
     time.sleep(0.1)  # a reopen within one firmware tick would go unnoticed
     term = Terminal(firmware.port)
     term.line(timeout=0.5)
     assert firmware.state == "STOP" and term.ask("STATUS").startswith("OK STATUS state=STOP")
-    term.link.close()
-
-
-def test_hello(terminal):
-    reply = terminal.ask("HELLO")
-    words = reply.split()
-    assert words[:3] == ["OK", "HELLO", "scanmap-motor"]
-    assert {"proto=1", "drive=dc", "watchdog=1000"} <= set(words)
-
-
-def test_tag_is_echoed_and_host_checksum_verified(terminal):
-    body = "#4242 STATUS"
-    assert terminal.ask(f"{body}*{xor_checksum(body)}").startswith("#4242 OK STATUS state=STOP")
-    assert terminal.ask(f"{body}*00" if xor_checksum(body) != "00" else f"{body}*01") == \
-        "ERR CHECKSUM expected " + xor_checksum(body) + ", got '00'"
-
-
-@pytest.mark.parametrize(("line", "reply"), [
-    (b"FLY\n", "ERR UNKNOWN FLY"),
-    (b"RUN CCW\n", "ERR ARGS RUN takes 2 argument(s)"),
-    (b"RUN UP 500\n", "ERR ARGS RUN <CCW|CW> <0..1000>"),
-    (b"RUN CCW 1001\n", "ERR ARGS RUN <CCW|CW> <0..1000>"),
-    (b"WATCHDOG 50\n", "ERR ARGS WATCHDOG <100..5000>"),
-    (b"PI\xffNG\n", "ERR BAD_BYTE byte outside printable ASCII"),
-    (b"X" * 80 + b"\n", "ERR TOO_LONG line over 63 characters"),
-])
-def test_damaged_or_wrong_requests_are_refused_and_the_link_recovers(terminal, firmware, line,
-                                                                      reply):
-    assert terminal.ask("HELLO").startswith("OK HELLO")
-    terminal.send(line)
-    assert terminal.line() == reply
-    assert firmware.state == "STOP"
-    assert terminal.ask("STATUS").startswith("OK STATUS state=STOP")
-
-
-def test_crlf_and_split_writes_are_one_line(terminal):
-    terminal.send(b"PI")
-    time.sleep(0.05)
-    terminal.send(b"NG\r\n")
-    assert terminal.line().startswith("OK PING t=")
+    term.close()
 
 
 def run_for(terminal: Terminal, seconds: float, command: str = "RUN CCW 800") -> None:
@@ -161,27 +87,6 @@ def test_cw_turns_the_heading_down_and_brake_stops_it(terminal, firmware):
     time.sleep(0.2)
     assert firmware.angle == pytest.approx(a1, abs=1e-3)
     assert abs(firmware.angular_velocity) < 1e-3
-
-
-def test_status_reports_ramped_speed_and_target(terminal):
-    terminal.ask("RUN CCW 1000")
-    fields = dict(w.split("=") for w in terminal.ask("STATUS").split()[2:])
-    assert fields["state"] == "RUN" and fields["target"] == "1000"
-    assert int(fields["speed"]) < 1000  # ramping: full speed takes 0.5 s
-    time.sleep(0.6)
-    fields = dict(w.split("=") for w in terminal.ask("STATUS").split()[2:])
-    assert fields["speed"] == "1000" and fields["faults"] == "NONE"
-
-
-def test_watchdog_brakes_a_silent_host_and_latches(terminal, firmware):
-    assert terminal.ask("WATCHDOG 200") == "OK WATCHDOG ms=200"
-    assert terminal.ask("RUN CCW 800").startswith("OK RUN")
-    time.sleep(0.6)  # the host says nothing
-    assert firmware.state == "BRAKE" and firmware.faults == ["WATCHDOG"]
-    assert terminal.ask("RUN CCW 800") == "ERR FAULT WATCHDOG"
-    assert "! FAULT WATCHDOG" in terminal.events
-    assert terminal.ask("CLEAR") == "OK CLEAR"
-    assert terminal.ask("RUN CCW 800").startswith("OK RUN")
 
 
 def test_watchdog_is_quiet_while_the_motor_is_stopped(terminal, firmware):

@@ -1,0 +1,50 @@
+"""A person at a serial monitor, for protocol tests: writes raw lines to a serial port and
+reads replies, checking each reply's checksum with an XOR computed here."""
+
+from __future__ import annotations
+
+import functools
+import time
+
+import serial
+
+
+def xor_checksum(text: str) -> str:
+    return f"{functools.reduce(lambda a, b: a ^ b, text.encode(), 0):02X}"
+
+
+class Terminal:
+    """Writes lines, reads reply bodies (checksum verified and removed); events (lines
+    starting with '!') are set aside in `events`."""
+
+    def __init__(self, port: str) -> None:
+        self.link = serial.Serial(port, 115200, timeout=0.05)
+        self.events: list[str] = []
+
+    def send(self, data: bytes) -> None:
+        self.link.write(data)
+
+    def line(self, timeout: float = 2.0) -> str | None:
+        """The next reply body, or None after `timeout` s."""
+        deadline = time.monotonic() + timeout
+        buffer = b""
+        while time.monotonic() < deadline:
+            buffer += self.link.read(1)
+            if buffer.endswith(b"\n"):
+                text = buffer[:-1].decode("ascii")
+                body, star, given = text.rpartition("*")
+                assert star and given == xor_checksum(body), text
+                if body.startswith("!"):
+                    self.events.append(body)
+                    buffer = b""
+                    continue
+                return body
+        return None
+
+    def ask(self, command: str | bytes, timeout: float = 2.0) -> str | None:
+        data = command if isinstance(command, bytes) else command.encode()
+        self.send(data + b"\n")
+        return self.line(timeout)
+
+    def close(self) -> None:
+        self.link.close()

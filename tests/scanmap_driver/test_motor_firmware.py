@@ -1,0 +1,255 @@
+"""The Arduino sketch and the simulated firmware against the same protocol conformance
+suite (docs/motor_protocol.md), over a pseudo-terminal.
+
+The sketch firmware/scanmap_motor/scanmap_motor.ino is compiled for this machine with a
+small stand-in for the Arduino core (tests/scanmap_driver/arduino_shim): Serial is the
+pty, and every pin change is logged, so the tests also check what the H-bridge would see.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import threading
+import time
+import tty
+from pathlib import Path
+
+import pytest
+
+from scanmap_driver.motor import MotorController
+from scanmap_driver.sim.firmware import SimulatedFirmware
+
+from .serial_terminal import Terminal, xor_checksum
+
+ROOT = Path(__file__).resolve().parents[2]
+SKETCH = ROOT / "firmware" / "scanmap_motor" / "scanmap_motor.ino"
+SHIM = Path(__file__).resolve().parent / "arduino_shim"
+PWM, IN1, IN2 = "A9", "D7", "D8"
+
+
+@pytest.fixture(scope="module")
+def build(tmp_path_factory):
+    """Compile the sketch for this machine: DRIVE -> binary path."""
+    compiler = shutil.which("g++")
+    if compiler is None:
+        pytest.skip("no g++ to compile the Arduino sketch for this machine")
+    out = tmp_path_factory.mktemp("firmware")
+
+    def compile_sketch(drive: int) -> Path:
+        binary = out / f"scanmap_motor_{drive}"
+        if not binary.exists():
+            subprocess.run([compiler, "-std=c++11", "-Wall", "-Wextra", "-Werror", "-O1",
+                            f"-DDRIVE={drive}", f"-I{SHIM}", "-x", "c++", str(SKETCH),
+                            "-x", "none", str(SHIM / "host_main.cpp"), "-o", str(binary)],
+                           check=True, capture_output=True, timeout=120)
+        return binary
+
+    return compile_sketch
+
+
+class SketchDevice:
+    """The compiled sketch on a pty: `port` for the host, `pins()` for its outputs."""
+
+    def __init__(self, binary: Path) -> None:
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        self.port = os.ttyname(slave)
+        os.close(slave)
+        self.process = subprocess.Popen([str(binary)], stdin=master, stdout=master,
+                                        stderr=subprocess.PIPE, text=True)
+        os.close(master)
+        self._log: list[tuple[int, str, int]] = []
+        self._reader = threading.Thread(target=self._read_pins, daemon=True)
+        self._reader.start()
+
+    def _read_pins(self) -> None:
+        for line in self.process.stderr:
+            match = re.fullmatch(r"t=(\d+) ([AD]\d+)=(-?\d+)\s*", line)
+            if match:
+                self._log.append((int(match[1]), match[2], int(match[3])))
+
+    def pins(self) -> dict[str, int]:
+        """The present value of every pin written so far."""
+        return {pin: value for _, pin, value in list(self._log)}
+
+    def close(self) -> None:
+        self.process.terminate()
+        try:
+            self.process.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(timeout=5.0)
+
+
+@pytest.fixture(params=["simulated", "sketch"])
+def device(request, build):
+    """A controller of either kind; `.port` is the path a host opens."""
+    if request.param == "sketch":
+        dev = SketchDevice(build(1))
+    else:
+        dev = SimulatedFirmware(reset_on_open=False)
+    yield dev
+    dev.close()
+
+
+@pytest.fixture
+def terminal(device):
+    term = Terminal(device.port)
+    yield term
+    term.close()
+
+
+def wait_until(predicate, timeout: float = 3.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return predicate()
+
+
+# -- conformance: both implementations -------------------------------------------------------
+
+def tagged(body: str) -> bytes:
+    return f"{body}*{xor_checksum(body)}".encode()
+
+
+@pytest.mark.parametrize(("request_line", "reply"), [
+    (b"HELLO", re.compile(r"OK HELLO scanmap-motor proto=1 fw=\S+ drive=dc watchdog=1000")),
+    (tagged("#7 STATUS"), re.compile(
+        r"#7 OK STATUS state=STOP dir=CCW speed=0 target=0 faults=NONE t=\d+")),
+    (tagged("#65535 PING"), re.compile(r"#65535 OK PING t=\d+")),
+    (b"PING\r", re.compile(r"OK PING t=\d+")),
+    (b"RUN CW 250", "OK RUN dir=CW speed=250"),
+    (b"#3 BRAKE", "#3 OK BRAKE"),
+    (b"STOP", "OK STOP"),
+    (b"WATCHDOG 300", "OK WATCHDOG ms=300"),
+    (b"CLEAR", "OK CLEAR"),
+    (b"FLY", "ERR UNKNOWN FLY"),
+    (b"#9 RUN CCW", "#9 ERR ARGS wrong number of arguments"),
+    (b"PING now", "ERR ARGS wrong number of arguments"),
+    (b"RUN UP 500", "ERR ARGS RUN <CCW|CW> <0..1000>"),
+    (b"RUN CCW 1001", "ERR ARGS RUN <CCW|CW> <0..1000>"),
+    (b"RUN CCW -5", "ERR ARGS RUN <CCW|CW> <0..1000>"),
+    (b"WATCHDOG 50", "ERR ARGS WATCHDOG <100..5000>"),
+    (b"PI\xffNG", "ERR BAD_BYTE byte outside printable ASCII"),
+    (b"X" * 80, "ERR TOO_LONG line over 63 characters"),
+    (b"#5 PING*00", re.compile(r"ERR CHECKSUM .*")),
+    (b"#5 PING*", re.compile(r"ERR CHECKSUM .*")),
+])
+def test_replies_follow_the_protocol(terminal, request_line, reply):
+    got = terminal.ask(request_line)
+    if isinstance(reply, str):
+        assert got == reply
+    else:
+        assert got is not None and reply.fullmatch(got), got
+    assert terminal.ask("PING").startswith("OK PING")  # the link recovers
+
+
+def test_split_writes_make_one_line(terminal):
+    terminal.send(b"PI")
+    time.sleep(0.05)
+    terminal.send(b"NG\r\n")
+    assert terminal.line().startswith("OK PING t=")
+
+
+def test_speed_ramps_to_the_target(terminal):
+    terminal.ask("RUN CCW 1000")
+    fields = dict(w.split("=") for w in terminal.ask("STATUS").split()[2:])
+    assert fields["state"] == "RUN" and fields["target"] == "1000"
+    assert int(fields["speed"]) < 1000  # full speed takes 0.5 s
+    time.sleep(0.7)
+    terminal.ask("PING")
+    fields = dict(w.split("=") for w in terminal.ask("STATUS").split()[2:])
+    assert fields["speed"] == "1000" and fields["faults"] == "NONE"
+
+
+def test_watchdog_brakes_a_silent_host_and_latches_until_clear(terminal):
+    assert terminal.ask("WATCHDOG 200") == "OK WATCHDOG ms=200"
+    assert terminal.ask("RUN CCW 800").startswith("OK RUN")
+    time.sleep(0.6)  # the host says nothing
+    status = terminal.ask("STATUS")
+    assert "state=BRAKE" in status and "faults=WATCHDOG" in status
+    assert "! FAULT WATCHDOG" in terminal.events
+    assert terminal.ask("RUN CCW 800") == "ERR FAULT WATCHDOG"
+    assert terminal.ask("CLEAR") == "OK CLEAR"
+    assert terminal.ask("RUN CCW 800").startswith("OK RUN")
+    terminal.ask("WATCHDOG 200")
+    time.sleep(0.6)
+    assert terminal.ask("HELLO").startswith("OK HELLO")  # HELLO clears faults too
+    assert terminal.ask("RUN CCW 800").startswith("OK RUN")
+
+
+def test_host_client_drives_either_controller(device):
+    with MotorController.connect(device.port) as motor:
+        assert motor.info.protocol == 1 and motor.info.drive == "dc"
+        motor.set_watchdog(400)
+        motor.run("CW", 600)
+        time.sleep(0.8)  # longer than the watchdog: the heartbeat keeps it alive
+        status = motor.status()
+        assert (status.state, status.direction, status.speed, status.faults) == \
+            ("RUN", "CW", 600, ())
+        motor.brake()
+        assert motor.status().state == "BRAKE"
+
+
+# -- what the sketch puts on its pins ---------------------------------------------------------
+
+@pytest.fixture
+def sketch(build):
+    dev = SketchDevice(build(1))
+    yield dev
+    dev.close()
+
+
+def test_sketch_drives_the_h_bridge(sketch):
+    with MotorController.connect(sketch.port) as motor:
+        assert wait_until(lambda: sketch.pins().get(PWM) == 0)
+        motor.run("CCW", 500)
+        assert wait_until(lambda: sketch.pins().get(PWM) == 127)  # 500 per mille of 255
+        assert sketch.pins()[IN1] == 1 and sketch.pins()[IN2] == 0
+        motor.run("CW", 500)  # ramps through zero to the other direction
+        assert wait_until(lambda: sketch.pins()[IN1] == 0 and sketch.pins()[IN2] == 1)
+        assert wait_until(lambda: sketch.pins().get(PWM) == 127)
+        motor.brake()  # short brake: both inputs high, enable on
+        assert wait_until(lambda: sketch.pins()[IN1] == 1 and sketch.pins()[IN2] == 1)
+        assert sketch.pins()[PWM] == 255
+        motor.stop()  # coast: all off
+        assert wait_until(lambda: (sketch.pins()[IN1], sketch.pins()[IN2],
+                                   sketch.pins()[PWM]) == (0, 0, 0))
+
+
+def test_sketch_ramp_takes_half_a_second_to_full_speed(sketch):
+    with MotorController.connect(sketch.port) as motor:
+        motor.run("CCW", 1000)
+        assert wait_until(lambda: sketch.pins().get(PWM) == 255, 2.0)
+    changes = [(t, v) for t, pin, v in sketch._log if pin == PWM and v > 0]
+    rise = changes[-1][0] - changes[0][0]
+    assert 0.4 * 1000 <= rise <= 0.7 * 1000
+
+
+def test_sketch_brakes_by_itself_when_the_host_vanishes(sketch):
+    motor = MotorController.connect(sketch.port, heartbeat=None)
+    motor.set_watchdog(200)
+    motor.run("CCW", 800)
+    assert wait_until(lambda: sketch.pins().get(PWM, 0) > 100)
+    motor._link.close()  # the host process is gone without a word
+    assert wait_until(lambda: (sketch.pins()[IN1], sketch.pins()[IN2]) == (1, 1), 1.0)
+
+
+def test_step_dir_build_enables_the_driver_only_while_turning(build):
+    dev = SketchDevice(build(2))
+    try:
+        with MotorController.connect(dev.port) as motor:
+            assert motor.info.drive == "step"
+            assert wait_until(lambda: dev.pins().get("D5") == 1)  # disabled at rest
+            motor.run("CW", 500)
+            assert wait_until(lambda: dev.pins().get("D5") == 0 and dev.pins().get("D4") == 0)
+            assert wait_until(lambda: "D3" in dev.pins())  # step pulses
+            motor.stop()
+            assert wait_until(lambda: dev.pins().get("D5") == 1)
+    finally:
+        dev.close()
