@@ -293,17 +293,18 @@ class VideoFileCamera(Camera):
 # -- rendered frames ---------------------------------------------------------------------
 
 class RenderedCamera(Camera):
-    """A live camera whose frames come from `render(t) -> BGR image` at time `t`.
+    """A live camera whose frames come from `render(t)` at time `t`: a BGR image, or the
+    JPEG bytes of an MJPG frame (kept as raw_jpeg, as a webcam's).
 
     It paces itself like a webcam: frame k is due at start + k / frame_rate (monotonic
     clock) and is rendered for that time. A renderer slower than the frame rate makes the
     camera skip the frames it missed, which are counted as dropped. jpeg_quality: encode
-    each frame as an MJPG webcam would (raw_jpeg set, image decoded from it); None keeps
-    the rendered image. The simulator builds it on the head angle of the simulated firmware.
+    each rendered image as an MJPG webcam would (raw_jpeg set, image decoded from it);
+    None keeps the image. The simulator renders for the simulated firmware's head angle.
     """
 
-    def __init__(self, render: Callable[[float], np.ndarray], frame_rate: float = 25.0,
-                 jpeg_quality: int | None = 90) -> None:
+    def __init__(self, render: Callable[[float], np.ndarray | bytes],
+                 frame_rate: float = 25.0, jpeg_quality: int | None = 90) -> None:
         super().__init__()
         self.render = render
         self.frame_rate = frame_rate
@@ -326,7 +327,10 @@ class RenderedCamera(Camera):
         if self._closed.wait(max(0.0, due - time.monotonic())):
             raise DeviceError("rendered camera: closed")
         self._slot += 1
-        image = np.ascontiguousarray(self.render(due), dtype=np.uint8)
+        rendered = self.render(due)
+        if isinstance(rendered, bytes):
+            return self._deliver(decode_jpeg(rendered, "rendered camera"), due, rendered)
+        image = np.ascontiguousarray(rendered, dtype=np.uint8)
         jpeg = None
         if self.jpeg_quality is not None:
             ok, encoded = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY,

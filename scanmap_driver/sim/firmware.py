@@ -140,6 +140,18 @@ class SimulatedFirmware:
                 return self.motor.heading + self.motor.speed * min(t - self._now, 0.05)
             return float(np.interp(t, h.t[:h.n], h.angle[:h.n]))
 
+    def heading_profile(self, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
+        """The head's true angle samples (times, angles) from before `start` to `end`
+        (monotonic s), for a renderer that needs the motion over an exposure."""
+        with self._lock:
+            h = self._history
+            first = max(int(np.searchsorted(h.t[:h.n], start)) - 1, 0)
+            times, angles = h.t[first:h.n].copy(), h.angle[first:h.n].copy()
+        if end > times[-1]:
+            times = np.append(times, end)
+            angles = np.append(angles, self.angle_at(end))
+        return times, angles
+
     @property
     def angle(self) -> float:
         """True head angle now (rad, unwrapped)."""

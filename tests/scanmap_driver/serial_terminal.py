@@ -41,6 +41,15 @@ class Terminal:
                 return body
         return None
 
+    def wait_event(self, prefix: str, timeout: float = 5.0) -> str | None:
+        """The first event starting with `prefix`, reading lines for up to `timeout` s."""
+        deadline = time.monotonic() + timeout
+        while True:
+            found = [e for e in self.events if e.startswith(prefix)]
+            if found or time.monotonic() >= deadline:
+                return found[0] if found else None
+            self.line(timeout=0.05)
+
     def ask(self, command: str | bytes, timeout: float = 2.0) -> str | None:
         data = command if isinstance(command, bytes) else command.encode()
         self.send(data + b"\n")

@@ -167,6 +167,14 @@ def test_rendered_camera_jpeg_is_what_it_delivers():
     assert np.abs(decoded.astype(int) - pattern_image(1)).mean() < 4.0
 
 
+def test_rendered_camera_passes_a_renderers_own_jpeg_through():
+    jpeg = cv2.imencode(".jpg", pattern_image(3), [cv2.IMWRITE_JPEG_QUALITY, 70])[1].tobytes()
+    with RenderedCamera(lambda t: jpeg, frame_rate=100.0, jpeg_quality=90) as camera:
+        frame = camera.read()
+    assert frame.raw_jpeg is jpeg
+    assert np.array_equal(frame.image, cv2.imdecode(np.frombuffer(jpeg, np.uint8), 1))
+
+
 def test_slow_renderer_makes_the_camera_drop_frames_and_count_them():
     def slow(t):
         time.sleep(0.05)  # 2.5 periods of a 50 frames/s camera

@@ -1,5 +1,6 @@
 """The scanning loop against the simulated firmware on a pseudo-terminal and a camera that
-renders the head's true angle (tests/scanmap_driver/sim_rig.py).
+renders the head's true angle (tests/scanmap_driver/sim_rig.py); its recordings and
+their replay.
 
 Truth is the motor model's own head angle over time. Each fault has a test showing the
 motor stopped (the firmware's state, and the head's true speed), the partial data kept,
@@ -16,9 +17,20 @@ import time
 import numpy as np
 import pytest
 
+from scanmap_driver import reference_scanner
 from scanmap_driver.camera import RenderedCamera
 from scanmap_driver.errors import DeviceError
-from scanmap_driver.scanner import ContinuousScanning, HeadingTracker, ScanFailed, ScanSettings
+from scanmap_driver.recording import Recording, RecordingWriter, read_avi_frames
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner import (
+    ContinuousScanning,
+    HeadingTracker,
+    ScanFailed,
+    ScanResult,
+    ScanSettings,
+    replay_recording,
+    write_scan,
+)
 from scanmap_driver.sim.motor_model import MotorParameters
 
 from .sim_rig import WALL_HEIGHTS, WALL_RADIUS, rig
@@ -276,3 +288,58 @@ def test_tracker_accepts_a_real_jump_after_three_agreeing_headings():
     results = [tracker.update(0.2 + k * 0.04, 2.0 - 0.1 * k) for k in range(3)]
     assert results == [False, False, True]
     assert wrapped(tracker.heading_now() - 1.8) == pytest.approx(0.0, abs=1e-12)
+
+
+# -- recording and replay ----------------------------------------------------------------------
+
+def recorded_result(fault=None, frames=6):
+    """A ScanResult as the loop makes it, with full-size MJPG frames of a rendered camera."""
+    camera = RenderedCamera(lambda t: np.full((480, 640, 3), int(t * 500) % 256, np.uint8),
+                            frame_rate=100.0, jpeg_quality=90)
+    taken = [camera.read() for _ in range(frames)]
+    t0 = taken[0].timestamp
+    log = [{"t": t0 - 0.01, "command": "status", "state": "STOP", "faults": []},
+           {"t": t0 - 0.005, "command": "run", "duty": 0.72},
+           {"t": taken[-1].timestamp + 0.001, "command": "brake", "duty": 0.0}]
+    return ScanResult(scan=Scan.empty(index=0, stamp=t0), frames=taken,
+                      frame_times=np.array([f.timestamp for f in taken]),
+                      headings=np.zeros(frames), motor_log=log, fault=fault)
+
+
+def test_write_scan_keeps_the_cameras_jpegs_times_and_motor_log(tmp_path):
+    result = recorded_result()
+    origin = result.frame_times[0] - 1.0
+    writer = RecordingWriter(tmp_path / "rec", reference_scanner(), source="camera")
+    write_scan(writer, result, origin)
+    write_scan(writer, recorded_result(fault="stall"), origin)
+    recording = Recording.open(tmp_path / "rec")
+    first, second = recording.scans
+    assert list(read_avi_frames(first.video)) == [f.raw_jpeg for f in result.frames]
+    assert np.allclose(first.frame_times, result.frame_times - origin)
+    assert first.stamp == pytest.approx(result.motor_log[1]["t"] - origin)
+    assert [e["command"] for e in first.motor_log] == ["status", "run", "brake"]
+    assert first.motor_log[1]["duty"] == 0.72 and first.motor_log[0]["state"] == "STOP"
+    assert first.complete and not second.complete
+
+
+def test_replay_feeds_the_recorded_frames_and_times_to_the_assembler(tmp_path):
+    result = recorded_result()
+    writer = RecordingWriter(tmp_path / "rec", reference_scanner(), source="camera")
+    write_scan(writer, result, origin=0.0)
+    seen = []
+
+    class Collector:
+        def __init__(self, model):
+            self.model = model
+
+        def add_frame(self, image, timestamp):
+            seen.append((image, timestamp))
+            return 0.0
+
+        def finish(self, index, odom_start, odom_end):
+            return Scan.empty(index=index), len(seen)
+
+    (scan, summary), = replay_recording(tmp_path / "rec", Collector)
+    assert summary == len(result.frames) and scan.index == 0
+    for (image, t), frame in zip(seen, result.frames, strict=True):
+        assert t == pytest.approx(frame.timestamp) and np.array_equal(image, frame.image)

@@ -26,24 +26,23 @@ def firmware():
 
 @pytest.fixture
 def terminal(firmware):
-    term = Terminal(firmware.port)
-    assert term.line(timeout=0.5) is None  # booting (reset by the port opening) ...
-    assert term.events[0].startswith("! BOOT scanmap-motor proto=1 ")  # ... then announced
+    term = Terminal(firmware.port)  # opening the port resets the controller, which boots
+    assert term.wait_event("! BOOT scanmap-motor proto=1 ")
     yield term
     term.close()
 
 
 def test_opening_the_port_resets_the_controller_like_an_uno(firmware):
     term = Terminal(firmware.port)
-    assert term.ask("HELLO") is None  # swallowed while booting
-    term.line(timeout=0.5)
+    assert term.ask("HELLO", timeout=0.1) is None  # swallowed while booting
+    assert term.wait_event("! BOOT")
     assert term.events == ["! BOOT scanmap-motor proto=1 fw=1.0.0-sim drive=dc"]
     assert term.ask("HELLO").startswith("OK HELLO")
     term.ask("RUN CCW 500")
     term.close()
     time.sleep(0.1)  # a reopen within one firmware tick would go unnoticed
     term = Terminal(firmware.port)
-    term.line(timeout=0.5)
+    assert term.wait_event("! BOOT")
     assert firmware.state == "STOP" and term.ask("STATUS").startswith("OK STATUS state=STOP")
     term.close()
 
@@ -151,3 +150,7 @@ def test_angle_history_interpolates_the_motion(firmware, terminal):
     samples = [firmware.angle_at(now - dt) for dt in (0.3, 0.2, 0.1, 0.0)]
     assert np.all(np.diff(samples) > 0)
     assert firmware.angle_at(now - 100.0) == pytest.approx(firmware.angle_at(0.0))
+    times, angles = firmware.heading_profile(now - 0.2, now + 0.01)
+    assert times[0] <= now - 0.2 and times[-1] == now + 0.01
+    assert np.all(np.diff(times) > 0) and np.all(np.diff(angles) > 0)
+    assert np.allclose(angles, [firmware.angle_at(t) for t in times])
