@@ -12,12 +12,18 @@ heading swept, frames and drops. Ctrl-C brakes the motor and keeps what was take
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from scanmap_driver import ScannerModel, reference_scanner
+from scanmap_driver.camera import Camera
 from scanmap_driver.scanner import Progress, ScanFailed, ScanResult
+
+SLOW_MOTION = 5.0  # the simulator renders about 7 frames/s: run its world 5x slower
 
 
 def add_device_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,6 +47,10 @@ def add_device_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--direction", choices=["CCW", "CW"], default="CCW")
     parser.add_argument("--exposure", type=float, default=40, metavar="UNITS",
                         help="fixed exposure in V4L2 units of 100 us (default 40: 4 ms)")
+    parser.add_argument("--simulate", metavar="SCENE",
+                        help="no hardware: the simulated motor controller on a pseudo-"
+                             "terminal and a webcam rendering SCENE (built-in name or file) "
+                             f"at the first scan pose, {SLOW_MOTION:g} times slower than life")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -76,19 +86,19 @@ class ProgressLine:
         if not self.live or now - self._last < 0.1:
             return
         self._last = now
-        goal = f"/{p.target * 57.29578:.0f}" if p.phase == "sweep" else " to go"
-        print(f"\rscan {p.index}: {p.phase} {p.coverage * 57.29578:4.0f}{goal} deg  "
+        goal = f"/{math.degrees(p.target):.0f}" if p.phase == "sweep" else " to go"
+        print(f"\rscan {p.index}: {p.phase} {math.degrees(p.coverage):4.0f}{goal} deg  "
               f"{p.frames} frames  {p.dropped_frames} dropped  {p.elapsed:4.1f} s ",
               end="", file=sys.stderr, flush=True)
 
     def done(self, result: ScanResult) -> None:
-        """Summarise a finished (or failed) scan."""
-        end = "\n" if self.live else ""
+        """Summarise a finished (or failed) scan on its own line."""
         state = f"FAILED ({result.fault})" if result.fault else "done"
-        print(f"{end if self.live else ''}\rscan {result.scan.index}: {state}, "
+        start = "\r" if self.live else ""
+        print(f"{start}scan {result.scan.index}: {state}, "
               f"{len(result.scan)} points, {len(result.frame_times)} frames, "
               f"{result.dropped_frames + result.overflow_frames} dropped, "
-              f"{result.coverage * 57.29578:.0f} deg in {result.duration:.1f} s",
+              f"{math.degrees(result.coverage):.0f} deg in {result.duration:.1f} s       ",
               file=sys.stderr)
 
 
@@ -117,10 +127,36 @@ def _save(scan, args: argparse.Namespace) -> None:
         scan.save_ply(stem.with_suffix(".ply"))
 
 
+@contextlib.contextmanager
+def open_devices(args: argparse.Namespace, model: ScannerModel
+                 ) -> Iterator[tuple[Camera, str, float | None]]:
+    """(camera, controller port, exposure in s) for the live scanner or the simulator."""
+    from scanmap_driver.camera import CameraSettings, RenderedCamera, V4L2Camera
+
+    if args.simulate is None:
+        if args.port is None:
+            raise SystemExit("scanmap: --port TTY is required (the motor controller)")
+        device = int(args.camera) if args.camera.isdigit() else args.camera
+        with V4L2Camera(device, CameraSettings(exposure=args.exposure)) as camera:
+            yield camera, args.port, args.exposure * 1e-4
+        return
+    from scanmap_driver.sim import resolve_scene
+    from scanmap_driver.sim.firmware import SimulatedFirmware, scene_renderer
+    from scanmap_driver.sim.motor_model import MotorParameters
+    from scanmap_driver.sim.render import Renderer
+
+    scene = resolve_scene(args.simulate)
+    renderer = Renderer(scene, model)
+    motor = MotorParameters(full_speed=MotorParameters().full_speed / SLOW_MOTION)
+    with SimulatedFirmware(motor) as firmware, \
+            RenderedCamera(scene_renderer(renderer, firmware, scene.scan_poses[0]),
+                           frame_rate=model.camera.frame_rate / SLOW_MOTION) as camera:
+        yield camera, firmware.port, renderer.camera.exposure
+
+
 def run_device(args: argparse.Namespace, process: bool, on_scan) -> int:
     """Open camera and controller, take the scans, record them if asked; shared by
     `scan` and `record`. Returns the exit code."""
-    from scanmap_driver.camera import CameraSettings, V4L2Camera
     from scanmap_driver.motor import MotorController
     from scanmap_driver.recording import RecordingWriter
     from scanmap_driver.scanner import (
@@ -131,13 +167,13 @@ def run_device(args: argparse.Namespace, process: bool, on_scan) -> int:
         write_scan,
     )
 
-    if args.port is None:
-        raise SystemExit("scanmap: --port TTY is required (the motor controller)")
     model = load_model(args.scanner)
-    device = int(args.camera) if args.camera.isdigit() else args.camera
+    slow = SLOW_MOTION if args.simulate else 1.0
     settings = ScanSettings(speed=args.speed, direction=args.direction,
                             continuous=args.rotation == "continuous",
-                            keep_frames=args.record is not None)
+                            keep_frames=args.record is not None, time_limit=8.0 * slow,
+                            return_time_limit=8.0 * slow, frame_timeout=1.0 * slow,
+                            stall_time=1.0 * slow)
     assembler = None
     if process:
         from scanmap_driver.assembly import ScanAssembler
@@ -145,21 +181,20 @@ def run_device(args: argparse.Namespace, process: bool, on_scan) -> int:
         def assembler() -> ScanAssembler:
             return ScanAssembler(model)
     progress = ProgressLine()
-    writer = origin = None
-    if args.record is not None:
-        writer = RecordingWriter(args.record, model, source="camera")
-        origin = time.monotonic()
-
-    def finished(result: ScanResult) -> None:
-        progress.done(result)
-        if writer is not None:
-            write_scan(writer, result, origin)
-        on_scan(result)
-
-    with V4L2Camera(device, CameraSettings(exposure=args.exposure)) as camera, \
-            MotorController.connect(args.port) as motor, \
+    origin = time.monotonic()
+    with open_devices(args, model) as (camera, port, exposure), \
+            MotorController.connect(port) as motor, \
             Scanner(camera, motor, encoder_headings(model), assembler, settings,
                     on_progress=progress) as scanner:
+        writer = None if args.record is None else RecordingWriter(
+            args.record, model, source="simulator" if args.simulate else "camera")
+
+        def finished(result: ScanResult) -> None:
+            progress.done(result)
+            if writer is not None:
+                write_scan(writer, result, origin, exposure)
+            on_scan(result)
+
         try:
             if args.continuous:
                 with ContinuousScanning(scanner) as scanning:

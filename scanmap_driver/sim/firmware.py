@@ -14,6 +14,9 @@ for the angle at its exposure time.
 Faults to inject: garbage bytes, replies split into delayed fragments, silence (the link
 wedges while the microcontroller keeps running), disappearance (the pty is closed, as when
 the USB cable is pulled), a stall (the head jams), a driver fault, a reset.
+
+`scene_renderer` renders a scene's frames for the firmware's true head motion, so a
+`camera.RenderedCamera` on it is a simulated webcam of the live scanner.
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ import select
 import threading
 import time
 import tty
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,7 +42,12 @@ from ..motor import (
     frame_line,
     parse_line,
 )
-from .motor_model import STEP, DcMotor, MotorParameters
+from .motor_model import STEP, DcMotor, MotorParameters, ScanMotion
+from .plan import ScanPlan
+from .scene import Motion
+
+if TYPE_CHECKING:
+    from .render import FrameTruth, Renderer
 
 RAMP_PER_SECOND = 2000  # per mille of speed per second: full speed in 0.5 s (as the sketch)
 WATCHDOG_DEFAULT_MS = 1000
@@ -351,3 +361,27 @@ class SimulatedFirmware:
             return
         with contextlib.suppress(OSError):
             os.write(self._master, data)
+
+
+def scene_renderer(renderer: Renderer, firmware: SimulatedFirmware, pose: np.ndarray,
+                   seed: int = 0,
+                   truths: list[FrameTruth] | None = None) -> Callable[[float], bytes]:
+    """`render(t)` for a `camera.RenderedCamera`: the MJPG frame the simulator renders for
+    the head's true motion around time t (the firmware's heading profile over the
+    exposure), with the robot standing at `pose` (x, y, yaw) in the scene. Each frame's
+    truth is appended to `truths` when given."""
+    rng = np.random.default_rng(seed)
+    pose = np.asarray(pose, dtype=np.float64)
+    margin = renderer.camera.exposure + renderer.camera.rolling_shutter + 0.05
+
+    def render(t: float) -> bytes:
+        times, angles = firmware.heading_profile(t - margin, t + margin)
+        motion = ScanMotion(times, angles, capture_end=t, end_heading=float(angles[-1]),
+                            log=())
+        plan = ScanPlan(0, 0.0, motion, np.array([t]), pose, Motion(), pose, pose)
+        frame = renderer.render(plan, 0, rng)
+        if truths is not None:
+            truths.append(frame.truth)
+        return frame.jpeg
+
+    return render
