@@ -14,10 +14,23 @@ Public API:
   recording with the same seed.
 * `plan_scans(scene, model, seed, count)` -> `ScanPlan` per scan: frame times, the DC
   motor's heading profile, true poses and odometry.
+* `Renderer(scene, model, camera=CameraSettings(), laser=LaserAppearance())` with
+  `render(plan, frame, rng)` -> `RenderedFrame` (the MJPG bytes, the decoded BGR image as
+  the webcam delivers it, and `FrameTruth`: heading, pose, every stripe point with its
+  true 3D point in `head`/`base_link`/`map` and shadow flag, the laser pixel mask), and
+  `light(plan, frame, rng)` for the radiance before the camera. A simulated camera renders
+  the frame for the head's current heading with it.
+* `simulate_recording(scene, out, model, seed=, scans=)` writes a raw recording
+  (`scanmap_driver.recording`) with `ground_truth/` (`truth.ScanTruth`, `raster`);
+  `simulate_ideal` writes ideal scans. `scanmap simulate` is the command line.
+* `truth_raster(scene, resolution, low, high)`: obstacle / floor / outside per cell.
 """
 
+from .camera_effects import CameraSettings
 from .ideal import IdealScan, ideal_scans
 from .plan import ScanPlan, plan_scans
+from .raster import TruthRaster, truth_raster
+from .render import FrameTruth, LaserAppearance, RenderedFrame, Renderer
 from .scene import (
     Box,
     Cylinder,
@@ -27,17 +40,29 @@ from .scene import (
     load_scene,
     resolve_scene,
 )
+from .simulate import simulate_ideal, simulate_recording
+from .truth import ScanTruth
 
 __all__ = [
     "Box",
+    "CameraSettings",
     "Cylinder",
+    "FrameTruth",
     "IdealScan",
+    "LaserAppearance",
+    "RenderedFrame",
+    "Renderer",
     "ScanPlan",
+    "ScanTruth",
     "Scene",
+    "TruthRaster",
     "builtin_scene",
     "builtin_scene_names",
     "ideal_scans",
     "load_scene",
     "plan_scans",
     "resolve_scene",
+    "simulate_ideal",
+    "simulate_recording",
+    "truth_raster",
 ]

@@ -14,9 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import open3d as o3d
+from numba import njit
 
 from ..encoder_disk import EncoderDisk
 from .scene import Box, Cylinder, Scene
+from .texture import surface_axes
 
 FLOOR_MARGIN = 60.0  # m of floor beyond the scene on every side
 FACET_LENGTH = 0.02  # m: a cylinder gets a side per this much circumference
@@ -52,8 +54,9 @@ class Raycaster:
 
         `origins` is (3,) for one common origin or (N, 3).
         """
-        directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-        origins = np.broadcast_to(np.asarray(origins, dtype=np.float64), directions.shape)
+        directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+        origins = np.ascontiguousarray(np.broadcast_to(np.asarray(origins, dtype=np.float64),
+                                                       directions.shape))
         rays = np.empty((directions.shape[0], 6), dtype=np.float32)
         rays[:, :3] = origins
         rays[:, 3:] = directions
@@ -65,14 +68,17 @@ class Raycaster:
         return plane, plane_distance(self.planes.planes, plane, origins, directions)
 
 
+@njit(cache=True, nogil=True)
 def plane_distance(planes: np.ndarray, plane: np.ndarray, origins: np.ndarray,
                    directions: np.ndarray) -> np.ndarray:
-    """Exact distance along each ray to its plane (inf where plane is NO_HIT)."""
+    """Exact distance along each ray (N, 3) to its plane (inf where plane is NO_HIT)."""
     t = np.full(plane.shape[0], np.inf)
-    hit = plane != NO_HIT
-    p = planes[plane[hit]]
-    t[hit] = (p[:, 3] - np.einsum("ij,ij->i", p[:, :3], origins[hit])) \
-        / np.einsum("ij,ij->i", p[:, :3], directions[hit])
+    for i in range(plane.shape[0]):
+        p = plane[i]
+        if p != NO_HIT:
+            n = planes[p]
+            t[i] = (n[3] - n[0] * origins[i, 0] - n[1] * origins[i, 1] - n[2] * origins[i, 2]) \
+                / (n[0] * directions[i, 0] + n[1] * directions[i, 1] + n[2] * directions[i, 2])
     return t
 
 
@@ -175,10 +181,13 @@ def disk_distance(disk: EncoderDisk, origins_base: np.ndarray,
                   directions_base: np.ndarray) -> np.ndarray:
     """Distance along rays in `base_link` to the encoder disk (inf where they miss it).
 
+    origins_base: (3,) common to all rays or (N, 3).
+
     The disk is the flat ring between the shaft hole and `outer_radius` at the disk's
     height, exact (no tessellation), seen from above by the camera and from below by
     the laser.
     """
+    origins_base = np.broadcast_to(origins_base, directions_base.shape)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (disk.height - origins_base[:, 2]) / directions_base[:, 2]
     x = origins_base[:, 0] + t * directions_base[:, 0]
@@ -186,6 +195,15 @@ def disk_distance(disk: EncoderDisk, origins_base: np.ndarray,
     radius2 = x * x + y * y
     hit = (t > 0.0) & (radius2 <= disk.outer_radius ** 2) & (radius2 >= DISK_HOLE ** 2)
     return np.where(hit, t, np.inf)
+
+
+def rotate(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """(N, 3) vectors times rotation.T, without BLAS.
+
+    OpenBLAS runs an (N, 3) x (3, 3) product on all cores and spins idle threads: twenty
+    times the CPU time of this loop on a busy machine.
+    """
+    return np.einsum("ij,kj->ik", vectors, rotation)
 
 
 def transform_per_frame(poses: np.ndarray, frame: np.ndarray, vectors: np.ndarray,
@@ -205,7 +223,7 @@ def transform_per_frame(poses: np.ndarray, frame: np.ndarray, vectors: np.ndarra
     for f in range(poses.shape[0]):
         a, b = bounds[f], bounds[f + 1]
         if b > a:
-            np.matmul(ordered[a:b], poses[f, :3, :3].T, out=out[a:b])
+            out[a:b] = rotate(ordered[a:b], poses[f, :3, :3])
             if translate:
                 out[a:b] += poses[f, :3, 3]
     if order is not None:
@@ -224,6 +242,7 @@ class World:
         colors = np.array([scene.floor_color, *(obj.color for obj in scene.objects)],
                           dtype=np.float64) / 255.0
         self.plane_albedo = colors[self.world.planes.plane_object]  # (P, 3) RGB 0..1
+        self.plane_axes = surface_axes(self.world.planes.planes[:, :3])  # (P, 2, 3) texture
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray, frame: np.ndarray,
                    map_from: np.ndarray, base_from: np.ndarray, threads: int = 0

@@ -81,7 +81,8 @@ def _ideal_scan(world: World, model: ScannerModel, plan: ScanPlan, pixel_sigma: 
     keep = result.valid
     points = points.select(keep)
     albedo = world.plane_albedo[points.plane]
-    shade = texture_factor(points.map, world.scene.texture)[:, None]
+    shade = texture_factor(points.map, points.plane, world.plane_axes,
+                           world.scene.texture)[:, None]
     colors = np.clip(np.round(255.0 * albedo * shade), 0, 255).astype(np.uint8)
     scan = Scan(points=result.points_base[keep], colors=colors,
                 time=plan.stamp + plan.frame_times[points.frame],

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..scanner_model import ScannerModel
 from ..triangulation import pixel_rays
-from .geometry import NO_HIT, World, transform_per_frame
+from .geometry import NO_HIT, World, rotate, transform_per_frame
 
 TOLERANCE = 1e-7  # relative distance mismatch (of 1 + distance) still counted as the same point
 SOLVE_ITERATIONS = 12
@@ -125,7 +125,8 @@ def project(model: ScannerModel, points_head: np.ndarray) -> np.ndarray:
     The same as `triangulation.project_head_points`, in numpy (no OpenCV call per batch).
     """
     cam = model.camera
-    local = (points_head - np.array(model.camera_mount.position)) @ model.camera_mount.rotation
+    local = rotate(points_head - np.array(model.camera_mount.position),
+                   model.camera_mount.rotation.T)
     with np.errstate(divide="ignore", invalid="ignore"):
         x, y = local[:, 0] / local[:, 2], local[:, 1] / local[:, 2]
     k1, k2, p1, p2, k3 = cam.distortion
@@ -310,3 +311,12 @@ def points_from_fan(world: World, model: ScannerModel, base_poses: np.ndarray,
     return _solve_and_verify(world, model, frame, cols, rows, rows + 0.5,
                              np.concatenate([first, second[other]]), base_poses, headings,
                              threads)
+
+
+def rows_at(world: World, model: ScannerModel, points: StripePoints, base_poses: np.ndarray,
+            headings: np.ndarray) -> np.ndarray:
+    """Rows of the same stripe points (same column and plane) at other headings and poses
+    (one per point), e.g. when the shutter opens and closes. Not verified."""
+    map_head, _ = head_poses(model, base_poses, headings)
+    planes = planes_in_head(world.world.planes.planes[points.plane], map_head)
+    return solve_rows(model, points.u, points.v, points.v + 0.5, planes)

@@ -1,0 +1,103 @@
+"""Simulated recordings: the raw recording a real scanner would make in a scene, with
+its ground truth, deterministic for a seed.
+
+`simulate_recording` renders every frame of every scan (`render`), writes the MJPG videos
+and sidecars in the recording format (`scanmap_driver.recording`) and the truth under
+`ground_truth/`: per scan `truth`, the scene as simulated (`scene.json`), the truth
+raster (`raster.npz`, 0.05 m, band 0.05-1.0 m) and the true pose at each scan's first frame
+(`trajectory.txt`, TUM: `t x y z qx qy qz qw`). `simulate_ideal` writes ideal scans instead
+(processed `scan_NNNN.npz` files, as `scanmap process` would) with the same truth files.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from ..files import atomic_path
+from ..recording import GROUND_TRUTH, RecordingWriter, scan_name
+from ..scanner_model import ScannerModel
+from ..transforms import rotation_to_quaternion
+from .camera_effects import CameraSettings
+from .ideal import ideal_scans
+from .plan import ScanPlan, plan_scans
+from .raster import truth_raster
+from .render import LIGHTING, Renderer
+from .scene import Scene
+from .truth import ScanTruth, truth_path
+
+_FRAME_NOISE = 20  # random stream purpose
+
+
+def lit_scene(scene: Scene, lighting: str | None) -> Scene:
+    """The scene under a lighting preset ('dark', 'bright'), or as it is (None)."""
+    if lighting is None:
+        return scene
+    if lighting not in LIGHTING:
+        raise ValueError(f"lighting: expected one of {sorted(LIGHTING)}, got {lighting!r}")
+    return scene.with_ambient(LIGHTING[lighting])
+
+
+def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: ScannerModel, *,
+                       seed: int = 0, scans: int | None = None,
+                       camera: CameraSettings | None = None, workers: int = 2,
+                       progress: Callable[[str], None] | None = None) -> Path:
+    """Render and write a raw recording with ground truth; returns its folder."""
+    camera = camera or CameraSettings()
+    out = Path(out)
+    plans = plan_scans(scene, model, seed, scans)
+    renderer = Renderer(scene, model, camera)
+    writer = RecordingWriter(out, model, source="simulator", extra={
+        "scene": scene.name, "seed": seed, "ambient": scene.ambient, "camera": asdict(camera)})
+    _write_common_truth(out, scene, plans)
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        for plan in plans:
+            frames = list(pool.map(
+                lambda i, plan=plan: renderer.render(
+                    plan, i, np.random.default_rng([seed, _FRAME_NOISE, plan.index, i])),
+                range(plan.frame_times.shape[0])))
+            with writer.scan(stamp=plan.stamp, exposure=camera.exposure) as scan:
+                for frame in frames:
+                    scan.add_jpeg(frame.jpeg, plan.stamp + frame.truth.time)
+                for entry in plan.motion.log:
+                    scan.log_motor(plan.stamp + entry["t"], entry["command"],
+                                   duty=entry["duty"])
+                scan.set_odometry(plan.odom_start, plan.odom_end)
+            ScanTruth.from_frames(plan, [f.truth for f in frames],
+                                  renderer.world.world.planes.plane_object
+                                  ).save(truth_path(out, plan.index))
+            if progress:
+                progress(f"scan {plan.index + 1}/{len(plans)}: {len(frames)} frames")
+    return out
+
+
+def simulate_ideal(scene: Scene, out: str | os.PathLike[str], model: ScannerModel, *,
+                   seed: int = 0, scans: int | None = None,
+                   progress: Callable[[str], None] | None = None) -> Path:
+    """Write ideal scans (`scan_NNNN.npz`) with ground truth; returns the folder."""
+    out = Path(out)
+    _write_common_truth(out, scene, plan_scans(scene, model, seed, scans))
+    for ideal in ideal_scans(scene, model, seed=seed, scans=scans):
+        ideal.scan.save(out / f"{scan_name(ideal.scan.index)}.npz")
+        if progress:
+            progress(f"scan {ideal.scan.index + 1}: {len(ideal.scan)} points")
+    return out
+
+
+def _write_common_truth(out: Path, scene: Scene, plans: list[ScanPlan]) -> None:
+    folder = out / GROUND_TRUTH
+    scene.save(folder / "scene.json")
+    truth_raster(scene).save(folder / "raster.npz")
+    lines = ["# true pose of base_link in map at each scan's first frame: t x y z qx qy qz qw"]
+    for plan in plans:
+        pose = plan.base_poses_at(plan.frame_times[0])[0]
+        q = rotation_to_quaternion(pose[:3, :3])
+        values = [plan.stamp + plan.frame_times[0], *pose[:3, 3], *q]
+        lines.append(" ".join(f"{v:.9f}" for v in values))
+    with atomic_path(folder / "trajectory.txt") as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
