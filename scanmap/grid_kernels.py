@@ -1,0 +1,493 @@
+"""Numba kernels of the 2.5D grid: tile discovery, scan insertion, window extraction.
+
+Each cell holds up to K height intervals ("levels"): occupied space seen as hits, kept
+sorted by height and separated by more than `merge_gap`. A cell therefore holds one
+surface until observations show more (the floor and, above a gap, a table top).
+
+Insertion is one scan at a time, in three passes:
+1. Hits: each point extends the level it falls in (within `merge_gap`) or starts one,
+   and adds `l_hit` log-odds to it once per scan. The level remembers the height range
+   of this scan's hits on it.
+2. Rays, traced from the hit back to the sensor origin, cell by cell (Amanatides-Woo in
+   x, y). In each cell the ray spans heights [za, zb]; it marks them seen free (the
+   cell's observed mask), and it clears (subtracts `l_miss` from) a level only if it
+   passed through it: the span contains the level's middle or lies inside the level
+   (then the level is split around the span, and both parts take the miss: it wrongly
+   spanned free space). A ray under a table top or over a low box leaves them alone. Guards
+   against eroding surfaces at grazing incidence: the last `clear_margin` metres
+   before the hit clear nothing; a level hit in this scan within `protect` metres of
+   the ray's heights is not cleared ("occupied wins", as in OctoMap, but per height, so
+   a level wrongly spanning a gap still loses the passes through the gap); a level
+   loses at most `max_misses` per scan. A level whose log-odds fall to 0 (p = 0.5) is
+   removed: the space is free, and a new hit there is occupied at once.
+   Rays from one origin (one camera frame) converge there and share their last cells:
+   the cell remembers the heights the current origin's rays marked (VKEY, VMASK), and a
+   ray stops after `bundle_run` cells in a row that a sibling ray already updated with
+   the same heights (as Voxblox's "fast" integrator does) instead of repeating them.
+3. Consolidation: in each cell where a hit started a level, neighbouring levels merge
+   unless a ray was seen passing between them: a cell holds one surface until
+   observations show more.
+
+Log-odds are clamped at `l_max`, so an object seen for thousands of scans still clears
+within ceil(l_max / (max_misses * l_miss)) scans once it has gone.
+
+Memory layout (flat, for speed): cell `off = (slot << 2s) | (row << s) | col` with
+s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, bundle key,
+bundle mask)`, where bit b of a mask covers z_min + [b, b+1) * mask_dz; `nlev[off]`
+levels in use; level k of the cell is record `off * K + k` of lev_f (lo, hi, log-odds,
+mean hit x, y offset from the cell centre, this scan's hit range), lev_n (hits, passes,
+scan stamp) and lev_flag.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# Fields of the float level record lev_f[li, :].
+# SLO, SHI: height range of the hits in scan `stamp` (valid while HIT_FLAG is set).
+LO, HI, LOGODDS, MX, MY, SLO, SHI = range(7)
+N_FLOAT_FIELDS = 7
+# Fields of the integer level record lev_n[li, :].
+HITS, PASSES, STAMP = 0, 1, 2
+N_INT_FIELDS = 3
+HIT_FLAG = 0x80  # lev_flag bit: hit in scan `stamp`; the low bits count its misses
+# Fields of cells[off]: observed-height mask, last scan id, and the ray-bundle scratch.
+SEEN, SCAN, VKEY, VMASK = range(4)
+N_CELL_FIELDS = 4
+
+# Point classes of classify_points.
+POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO_FAR = range(5)
+
+# Indices into the float parameter vector `fp` of the insertion kernel.
+(FP_RES, FP_X0, FP_Y0, FP_ZMIN, FP_MASK_DZ, FP_GAP, FP_MARGIN, FP_LHIT, FP_LMISS, FP_LMAX,
+ FP_PROTECT) = range(11)
+# Indices into the integer parameter vector `ip`.
+IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN = range(6)
+
+_U32_MAX = np.uint32(0xFFFFFFFF)
+_MEAN_WINDOW = 1024.0  # hit-centroid running mean forgets beyond this many hits
+
+
+@njit(cache=True, nogil=True)
+def classify_points(points: np.ndarray, origins: np.ndarray, bounds: np.ndarray,
+                    window: np.ndarray, max_range: float) -> np.ndarray:
+    """POINT_* class of each ray: bounds and window are (xmin, ymin, xmax, ymax) in metres."""
+    n = points.shape[0]
+    out = np.zeros(n, np.uint8)
+    for i in range(n):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+        if not (np.isfinite(px) and np.isfinite(py) and np.isfinite(pz) and np.isfinite(ox)
+                and np.isfinite(oy) and np.isfinite(oz)):
+            out[i] = POINT_NONFINITE
+        elif not (bounds[0] <= px < bounds[2] and bounds[1] <= py < bounds[3]
+                  and bounds[0] <= ox < bounds[2] and bounds[1] <= oy < bounds[3]):
+            out[i] = POINT_OUTSIDE_EXTENT
+        elif not (window[0] <= px < window[2] and window[1] <= py < window[3]
+                  and window[0] <= ox < window[2] and window[1] <= oy < window[3]):
+            out[i] = POINT_OUTSIDE_WINDOW
+        elif (px - ox) ** 2 + (py - oy) ** 2 + (pz - oz) ** 2 > max_range * max_range:
+            out[i] = POINT_TOO_FAR
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dda_setup(gx0: float, gy0: float, gx1: float, gy1: float):
+    """Amanatides-Woo set-up in cell units: start cell, steps, next crossings, deltas, count."""
+    ix, iy = int(np.floor(gx0)), int(np.floor(gy0))
+    ex, ey = int(np.floor(gx1)), int(np.floor(gy1))
+    dx, dy = gx1 - gx0, gy1 - gy0
+    sx = 1 if dx > 0 else -1
+    sy = 1 if dy > 0 else -1
+    if dx != 0.0:
+        tdx = abs(1.0 / dx)
+        tmx = ((ix + 1 - gx0) if dx > 0 else (gx0 - ix)) * tdx
+    else:
+        tdx, tmx = np.inf, np.inf
+    if dy != 0.0:
+        tdy = abs(1.0 / dy)
+        tmy = ((iy + 1 - gy0) if dy > 0 else (gy0 - iy)) * tdy
+    else:
+        tdy, tmy = np.inf, np.inf
+    return ix, iy, sx, sy, tmx, tmy, tdx, tdy, abs(ex - ix) + abs(ey - iy)
+
+
+@njit(cache=True, nogil=True)
+def _request_tile(tile_index, ty, tx, out, count) -> int:
+    """Mark tile (ty, tx) requested (-2) and list it if it has no slot; -1 when out is full."""
+    if tile_index[ty, tx] != -1:
+        return count
+    if count == out.shape[0]:
+        return -1
+    tile_index[ty, tx] = -2
+    out[count, 0] = ty
+    out[count, 1] = tx
+    return count + 1
+
+
+@njit(cache=True, nogil=True)
+def collect_missing_tiles(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
+                          tile_index: np.ndarray, res: float, tile_cells: int, x0: float,
+                          y0: float, out: np.ndarray) -> int:
+    """Tiles crossed by valid rays that have no slot: marks them -2 and lists (ty, tx) in out.
+
+    Tile coordinates are cell coordinates divided by the (power of 2) tile size, exactly
+    as the insertion kernel computes them. Returns the count listed, or -1 when `out`
+    filled up (allocate, then call again).
+    """
+    count = 0
+    for i in range(points.shape[0]):
+        if cls[i] != POINT_OK:
+            continue
+        gx0, gy0 = (origins[i, 0] - x0) / res / tile_cells, (origins[i, 1] - y0) / res / tile_cells
+        gx1, gy1 = (points[i, 0] - x0) / res / tile_cells, (points[i, 1] - y0) / res / tile_cells
+        count = _request_tile(tile_index, int(np.floor(gy1)), int(np.floor(gx1)), out, count)
+        ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(gx0, gy0, gx1, gy1)
+        for _ in range(steps + 1):
+            if count < 0:
+                return -1
+            count = _request_tile(tile_index, iy, ix, out, count)
+            if tmx < tmy:
+                ix += sx
+                tmx += tdx
+            else:
+                iy += sy
+                tmy += tdy
+        if count < 0:
+            return -1
+    return count
+
+
+@njit(cache=True, nogil=True, inline="always")
+def height_mask(za: float, zb: float, z_min: float, dz: float) -> np.uint64:
+    """Bits of the observed-height mask covering [za, zb] (za <= zb), clipped to 64 bins."""
+    b0 = min(max(int(np.floor((za - z_min) / dz)), 0), 63)
+    b1 = min(max(int(np.floor((zb - z_min) / dz)), 0), 63)
+    one = np.uint64(1)
+    high = np.uint64(0xFFFFFFFFFFFFFFFF) if b1 == 63 else (one << np.uint64(b1 + 1)) - one
+    return high & ~((one << np.uint64(b0)) - one)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _touch(lev_n, lev_flag, li, scan) -> None:
+    """Start the per-scan bookkeeping of level record li when this scan first touches it."""
+    if lev_n[li, STAMP] != scan:
+        lev_n[li, STAMP] = scan
+        lev_flag[li] = 0
+
+
+@njit(cache=True, nogil=True)
+def _remove(lev_f, lev_n, lev_flag, nlev, off, k, levels) -> None:
+    """Delete level k of cell off, keeping the others sorted and packed."""
+    n = np.int64(nlev[off])
+    base = off * levels
+    for j in range(base + k, base + n - 1):
+        lev_f[j] = lev_f[j + 1]
+        lev_n[j] = lev_n[j + 1]
+        lev_flag[j] = lev_flag[j + 1]
+    nlev[off] = n - 1
+
+
+@njit(cache=True, nogil=True)
+def _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels) -> None:
+    """Merge level k+1 of cell off into its level k and close the slot it leaves."""
+    ia = off * levels + k
+    ib = ia + 1
+    ha, hb = float(lev_n[ia, HITS]), float(lev_n[ib, HITS])
+    w = hb / max(ha + hb, 1.0)
+    lev_f[ia, MX] += (lev_f[ib, MX] - lev_f[ia, MX]) * w
+    lev_f[ia, MY] += (lev_f[ib, MY] - lev_f[ia, MY]) * w
+    lev_f[ia, LO] = min(lev_f[ia, LO], lev_f[ib, LO])
+    lev_f[ia, HI] = max(lev_f[ia, HI], lev_f[ib, HI])
+    lev_f[ia, LOGODDS] = max(lev_f[ia, LOGODDS], lev_f[ib, LOGODDS])
+    lev_n[ia, HITS] = np.uint32(min(ha + hb, 4294967295.0))
+    lev_n[ia, PASSES] = np.uint32(min(float(lev_n[ia, PASSES]) + float(lev_n[ib, PASSES]),
+                                      4294967295.0))
+    if lev_n[ib, STAMP] > lev_n[ia, STAMP]:
+        lev_n[ia, STAMP] = lev_n[ib, STAMP]
+        lev_flag[ia] = lev_flag[ib]
+        lev_f[ia, SLO], lev_f[ia, SHI] = lev_f[ib, SLO], lev_f[ib, SHI]
+    elif lev_n[ib, STAMP] == lev_n[ia, STAMP]:
+        fa, fb = np.int64(lev_flag[ia]), np.int64(lev_flag[ib])
+        lev_flag[ia] = ((fa | fb) & HIT_FLAG) | max(fa & 0x7F, fb & 0x7F)
+        if fa & HIT_FLAG and fb & HIT_FLAG:
+            lev_f[ia, SLO] = min(lev_f[ia, SLO], lev_f[ib, SLO])
+            lev_f[ia, SHI] = max(lev_f[ia, SHI], lev_f[ib, SHI])
+        elif fb & HIT_FLAG:
+            lev_f[ia, SLO], lev_f[ia, SHI] = lev_f[ib, SLO], lev_f[ib, SHI]
+    _remove(lev_f, lev_n, lev_flag, nlev, off, k + 1, levels)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> bool:
+    """Record a hit at height z and offset (ox, oy) from the centre of cell off; True when
+    it started a new level."""
+    gap = fp[FP_GAP]
+    n = np.int64(nlev[off])
+    base = off * levels
+    k = -1
+    for j in range(n):
+        if lev_f[base + j, LO] - gap <= z <= lev_f[base + j, HI] + gap:
+            k = j
+            break
+    fresh = k < 0 and n < levels
+    if fresh:
+        k = 0
+        while k < n and lev_f[base + k, LO] < z:
+            k += 1
+        for j in range(base + n, base + k, -1):
+            lev_f[j] = lev_f[j - 1]
+            lev_n[j] = lev_n[j - 1]
+            lev_flag[j] = lev_flag[j - 1]
+        nlev[off] = n + 1
+        li = base + k
+        lev_f[li, LO] = z
+        lev_f[li, HI] = z
+        lev_f[li, LOGODDS] = 0.0
+        lev_f[li, MX] = ox
+        lev_f[li, MY] = oy
+        lev_n[li, HITS] = 0
+        lev_n[li, PASSES] = 0
+        lev_n[li, STAMP] = scan
+        lev_flag[li] = 0
+    elif k < 0:  # all K slots taken: the nearest level absorbs the hit (fills the gap)
+        best = np.inf
+        for m in range(n):
+            d = max(lev_f[base + m, LO] - z, z - lev_f[base + m, HI])
+            if d < best:
+                best = d
+                k = m
+    li = base + k
+    lev_f[li, LO] = min(lev_f[li, LO], z)
+    lev_f[li, HI] = max(lev_f[li, HI], z)
+    hits = min(float(lev_n[li, HITS]) + 1.0, 4294967295.0)
+    lev_n[li, HITS] = np.uint32(hits)
+    w = 1.0 / min(hits, _MEAN_WINDOW)
+    lev_f[li, MX] += (ox - lev_f[li, MX]) * w
+    lev_f[li, MY] += (oy - lev_f[li, MY]) * w
+    _touch(lev_n, lev_flag, li, scan)
+    if not lev_flag[li] & HIT_FLAG:
+        lev_flag[li] |= HIT_FLAG
+        lev_f[li, LOGODDS] = min(lev_f[li, LOGODDS] + fp[FP_LHIT], fp[FP_LMAX])
+        lev_f[li, SLO] = z
+        lev_f[li, SHI] = z
+    else:
+        lev_f[li, SLO] = min(lev_f[li, SLO], z)
+        lev_f[li, SHI] = max(lev_f[li, SHI], z)
+    while k + 1 < np.int64(nlev[off]) and lev_f[base + k + 1, LO] - gap <= lev_f[base + k, HI]:
+        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels)
+    while k > 0 and lev_f[base + k - 1, HI] + gap >= lev_f[base + k, LO]:
+        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k - 1, levels)
+        k -= 1
+    return fresh
+
+
+@njit(cache=True, nogil=True)
+def _consolidate(lev_f, lev_n, lev_flag, nlev, off, free_mask, z_min, dz, levels) -> None:
+    """Merge neighbouring levels of cell off unless a ray was seen passing between them.
+
+    A cell holds one surface until observations show more: sparse hits up a wall face
+    become one level, while the floor and a table top, with rays seen passing between
+    them (at least one height bin of the gap seen free), stay two.
+    """
+    base = off * levels
+    for k in range(np.int64(nlev[off]) - 2, -1, -1):
+        b0 = int(np.floor((lev_f[base + k, HI] - z_min) / dz)) + 1
+        b1 = int(np.floor((lev_f[base + k + 1, LO] - z_min) / dz)) - 1
+        gap = height_mask(z_min + (b0 + 0.5) * dz, z_min + (b1 + 0.5) * dz, z_min, dz)
+        if b1 < b0 or free_mask & gap == 0:
+            _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _crosses(lo: float, hi: float, za: float, zb: float) -> bool:
+    """A ray spanning heights [za, zb] in a cell passed through the level [lo, hi]."""
+    mid = 0.5 * (lo + hi)
+    return (za <= mid <= zb) or (za >= lo and zb <= hi)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _crosses_any(lev_f, n, base, za, zb) -> bool:
+    """Whether the ray passed through any of the n levels starting at record base."""
+    for li in range(base, base + n):
+        if _crosses(lev_f[li, LO], lev_f[li, HI], za, zb):
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss) -> int:
+    """One pass through level k of cell off: a miss, unless it had `max_misses` this scan.
+
+    Returns 1 when the level falls to p = 0.5 and is removed.
+    """
+    li = off * levels + k
+    flag = np.int64(lev_flag[li])
+    if (flag & 0x7F) >= max_miss:
+        return 0
+    lev_flag[li] = flag + 1
+    lev_f[li, LOGODDS] -= fp[FP_LMISS]
+    if lev_f[li, LOGODDS] > 0.0:
+        return 0
+    _remove(lev_f, lev_n, lev_flag, nlev, off, k, levels)
+    return 1
+
+
+@njit(cache=True, nogil=True)
+def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, fp, levels, max_miss, scan) -> int:
+    """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
+
+    A pass strictly inside a level splits it there (the level wrongly spanned free
+    space: a merged floor and table top, or a person being walked through), and both
+    parts take the miss. Returns the number of levels removed.
+    """
+    cleared = 0
+    base = off * levels
+    protect = fp[FP_PROTECT]
+    split_margin = 0.5 * fp[FP_MASK_DZ]
+    for k in range(np.int64(nlev[off]) - 1, -1, -1):
+        li = base + k
+        lo, hi = lev_f[li, LO], lev_f[li, HI]
+        if not _crosses(lo, hi, za, zb):
+            continue
+        lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
+        _touch(lev_n, lev_flag, li, scan)
+        if lev_flag[li] & HIT_FLAG and zb >= lev_f[li, SLO] - protect \
+                and za <= lev_f[li, SHI] + protect:
+            continue  # hit near these heights in this scan: occupied wins
+        n = np.int64(nlev[off])
+        if n < levels and lo + split_margin < za and zb + split_margin < hi:
+            for j in range(base + n, li + 1, -1):
+                lev_f[j] = lev_f[j - 1]
+                lev_n[j] = lev_n[j - 1]
+                lev_flag[j] = lev_flag[j - 1]
+            lev_f[li + 1] = lev_f[li]
+            lev_n[li + 1] = lev_n[li]
+            lev_flag[li + 1] = lev_flag[li]
+            lev_f[li, HI] = za
+            lev_f[li + 1, LO] = zb
+            nlev[off] = n + 1
+            cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k + 1, fp, levels, max_miss)
+        cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
+    return cleared
+
+
+@njit(cache=True, nogil=True)
+def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
+                tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
+                lev_flag: np.ndarray, nlev: np.ndarray, cells: np.ndarray, fp: np.ndarray,
+                ip: np.ndarray) -> tuple[int, int, int]:
+    """Insert one scan (rays with cls == POINT_OK); returns (hits, cleared, last ray key)."""
+    res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
+    z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
+    shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
+    bundle_run = ip[IP_RUN]
+    mask = (1 << shift) - 1
+    scan = np.uint32(ip[IP_SCAN])
+    scan64 = np.uint64(ip[IP_SCAN])
+    n_hits = 0
+    fresh = np.empty(points.shape[0], np.int64)  # cells where a hit started a level
+    n_fresh = 0
+    for i in range(points.shape[0]):  # pass 1: hits
+        if cls[i] != POINT_OK:
+            continue
+        gx, gy = (points[i, 0] - x0) / res, (points[i, 1] - y0) / res
+        ix, iy = int(np.floor(gx)), int(np.floor(gy))
+        off = (np.int64(tile_index[iy >> shift, ix >> shift]) << (2 * shift)) \
+            | ((iy & mask) << shift) | (ix & mask)
+        z = points[i, 2]
+        if _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, (gx - ix - 0.5) * res,
+                    (gy - iy - 0.5) * res, fp, levels, scan):
+            fresh[n_fresh] = off
+            n_fresh += 1
+        cells[off, SCAN] = scan64
+        n_hits += 1
+    n_cleared = 0
+    key = np.uint64(ip[IP_KEY])
+    group = (-1, -1, -1)
+    for i in range(points.shape[0]):  # pass 2: rays, traced from the hit back to the origin
+        if cls[i] != POINT_OK:
+            continue
+        ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+        origin_cell = (int(np.floor(ox / res)), int(np.floor(oy / res)), int(np.floor(oz / res)))
+        if origin_cell != group:
+            group = origin_cell
+            key += np.uint64(1)
+        pz = points[i, 2]
+        dzr = oz - pz
+        length = np.sqrt((points[i, 0] - ox) ** 2 + (points[i, 1] - oy) ** 2 + dzr * dzr)
+        t_margin = fp[FP_MARGIN] / length if length > 0.0 else 2.0
+        ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(
+            (points[i, 0] - x0) / res, (points[i, 1] - y0) / res, (ox - x0) / res,
+            (oy - y0) / res)
+        t_in = 0.0
+        run = 0
+        tile_x, tile_y, tile_base = -1, -1, np.int64(-1)
+        for s in range(steps + 1):
+            if ix >> shift != tile_x or iy >> shift != tile_y:
+                tile_x, tile_y = ix >> shift, iy >> shift
+                tile_base = np.int64(tile_index[tile_y, tile_x]) << (2 * shift)
+            t_out = 1.0 if s == steps else min(tmx, tmy, 1.0)
+            if tile_base >= 0:  # always, unless rounding stepped off the ray's tiles
+                off = tile_base | ((iy & mask) << shift) | (ix & mask)
+                za, zb = pz + dzr * t_in, pz + dzr * t_out
+                bits = height_mask(min(za, zb), max(za, zb), z_min, mdz)
+                if cells[off, VKEY] == key and cells[off, VMASK] & bits == bits:
+                    run += 1  # a ray of the same origin already did this cell's update
+                    if run == bundle_run:
+                        break
+                else:
+                    run = 0
+                    if cells[off, VKEY] != key:
+                        cells[off, VKEY] = key
+                        cells[off, VMASK] = 0
+                    cells[off, VMASK] |= bits
+                    cells[off, SEEN] |= bits
+                    cells[off, SCAN] = scan64
+                    if nlev[off] > 0 and t_out > t_margin:
+                        za = pz + dzr * max(t_in, t_margin)
+                        za, zb = min(za, zb), max(za, zb)
+                        if _crosses_any(lev_f, nlev[off], off * levels, za, zb):
+                            n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb,
+                                                    fp, levels, max_miss, scan)
+            if tmx < tmy:
+                ix += sx
+                t_in = tmx
+                tmx += tdx
+            else:
+                iy += sy
+                t_in = tmy
+                tmy += tdy
+    for i in range(n_fresh):  # pass 3: merge new levels unless their gap was seen free
+        off = fresh[i]
+        _consolidate(lev_f, lev_n, lev_flag, nlev, off, cells[off, SEEN], z_min, mdz, levels)
+    return n_hits, n_cleared, np.int64(key)
+
+
+@njit(cache=True, nogil=True)
+def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
+                   nlev: np.ndarray, cells: np.ndarray, shift: int, levels: int, ix0: int,
+                   iy0: int, out_f: np.ndarray, out_n: np.ndarray, out_nlev: np.ndarray,
+                   out_seen: np.ndarray, out_scan: np.ndarray) -> None:
+    """Copy cells [iy0, iy0+ny) x [ix0, ix0+nx) into dense arrays; absent tiles stay empty."""
+    ny, nx = out_nlev.shape
+    mask = (1 << shift) - 1
+    ty_max, tx_max = tile_index.shape
+    for y in range(ny):
+        iy = iy0 + y
+        for x in range(nx):
+            ix = ix0 + x
+            ty, tx = iy >> shift, ix >> shift
+            if iy < 0 or ix < 0 or ty >= ty_max or tx >= tx_max or tile_index[ty, tx] < 0:
+                continue
+            off = (np.int64(tile_index[ty, tx]) << (2 * shift)) | ((iy & mask) << shift) \
+                | (ix & mask)
+            n = nlev[off]
+            out_nlev[y, x] = n
+            out_seen[y, x] = cells[off, SEEN]
+            out_scan[y, x] = cells[off, SCAN]
+            for k in range(n):
+                out_f[y, x, k] = lev_f[off * levels + k]
+                out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS]
+                out_n[y, x, k, PASSES] = lev_n[off * levels + k, PASSES]

@@ -1,0 +1,38 @@
+"""The rays of a scan in the map: each point and the camera centre it was seen from.
+
+For this scanner every ray starts at the camera centre of its frame, which turns with
+the head: origin = pose @ model.head_pose(heading) @ camera position. The grid clears
+space along these rays, so they must start where the camera really was.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scanmap_driver.errors import ScanError
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner_model import ScannerModel
+from scanmap_driver.transforms import transform_points
+
+
+def camera_centres(model: ScannerModel, headings: np.ndarray) -> np.ndarray:
+    """(N, 3) camera centres in base_link at the given head headings (rad)."""
+    headings = np.asarray(headings, dtype=np.float64)
+    camera = np.array(model.camera_mount.position)
+    c, s = np.cos(headings), np.sin(headings)
+    in_mount = np.column_stack([c * camera[0] - s * camera[1], s * camera[0] + c * camera[1],
+                                np.full(headings.shape, camera[2])])
+    return transform_points(model.head_mount.pose, in_mount)
+
+
+def scan_rays(scan: Scan, model: ScannerModel,
+              pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Points (N, 3) and ray origins (N, 3) of `scan` in map, float64.
+
+    pose: 4x4 map <- base_link (identity when None).
+    """
+    pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
+    if pose.shape != (4, 4) or not np.isfinite(pose).all():
+        raise ScanError(f"scan_rays: pose must be a finite 4x4 matrix, got shape {pose.shape}")
+    return (transform_points(pose, scan.points),
+            transform_points(pose, camera_centres(model, scan.heading)))
