@@ -1,0 +1,437 @@
+"""Laser extraction: kernels against plain numpy, accuracy against rendered truth, hard cases,
+and the real laser-on/laser-off pairs."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import curve_fit
+
+from scanmap_driver import laser
+from scanmap_driver.errors import ScanError
+from scanmap_driver.laser import Flag, LaserSettings, extract_stripe
+from tests.conftest import real_data
+from tests.scanmap_driver.synthetic_frames import stripe_frame
+
+# ---------------------------------------------------------------- numpy references
+
+
+def evidence_reference(image: np.ndarray, dark: bool, t: int, sat: int) -> np.ndarray:
+    b, g, r = (image[:, :, k].astype(np.int16) for k in range(3))
+    if dark:
+        return np.where(((r > t) & (g < t) & (b < t)) | (r >= sat), r, 0).astype(np.int16)
+    other = np.maximum(g, b)
+    return r - np.where(r >= sat, np.minimum(other, laser.WHITE_CAP), other)
+
+
+def ridge_reference(e: np.ndarray, pad: int, m: int, offset: int, side: int) -> np.ndarray:
+    """Response (positions, lines) exactly as documented in ridge_kernel."""
+    ef = e.astype(np.int64)
+    weights = np.array([m - abs(k) for k in range(-m + 1, m)])
+    n_pos = e.shape[0] - 2 * pad
+    out = np.empty((n_pos, e.shape[1]), np.int64)
+    for p in range(n_pos):
+        x = pad + p
+        tri = weights @ ef[x - m + 1:x + m]
+        left = ef[x - offset - side + 1:x - offset + 1].sum(0)
+        right = ef[x + offset:x + offset + side].sum(0)
+        out[p] = tri * side - np.maximum(left, right) * m * m
+    return out
+
+
+def runs_reference(response: np.ndarray, hi: int, lo: int) -> np.ndarray:
+    count = np.zeros(response.shape[1], int)
+    state = np.zeros(response.shape[1], bool)
+    for row in response:
+        above = row >= hi
+        count += above & ~state
+        state = (state | above) & (row >= lo)
+    return count
+
+
+def gauss3_reference(g: np.ndarray, i0: int) -> float:
+    la, lb, lc = np.log(g[i0 - 1:i0 + 2])
+    return 0.5 * (la - lc) / (la - 2 * lb + lc)
+
+
+def blais_rioux_reference(g: np.ndarray, i0: int) -> float:
+    """Zero crossing of g(i-2)+g(i-1)-g(i+1)-g(i+2), linearly interpolated."""
+    idx = np.arange(2, len(g) - 2)
+    h = g[idx - 2] + g[idx - 1] - g[idx + 1] - g[idx + 2]
+    k = np.nonzero((h[:-1] <= 0) & (h[1:] > 0))[0]
+    k = k[np.argmin(np.abs(idx[k] - i0))]
+    return idx[k] + h[k] / (h[k] - h[k + 1]) - i0
+
+
+def gaussian(x, amp, mu, sig):
+    return amp * np.exp(-0.5 * ((x - mu) / sig) ** 2)
+
+
+# ---------------------------------------------------------------- kernels vs numpy
+
+
+@pytest.mark.parametrize("dark", [False, True])
+@pytest.mark.parametrize("by_rows", [False, True])
+def test_evidence_kernel_matches_numpy(dark, by_rows):
+    rng = np.random.default_rng(3)
+    image = rng.integers(0, 256, (24, 31, 3), dtype=np.uint8)
+    pad = 4
+    ref = evidence_reference(image, dark, 120, 240)
+    if by_rows:
+        ref = ref.T
+    out = np.zeros((ref.shape[0] + 2 * pad, ref.shape[1]), np.int16)
+    laser.evidence_kernel(image.reshape(-1), 24, 31, by_rows, dark, np.uint8(120),
+                          np.uint8(240), pad, out)
+    assert np.array_equal(out[pad:-pad], ref)
+    assert not out[:pad].any() and not out[-pad:].any()
+
+
+@pytest.mark.parametrize("windows", [(2, 2, 4), (3, 3, 4), (4, 5, 6)])
+def test_ridge_kernel_matches_numpy(windows):
+    m, offset, side = windows
+    rng = np.random.default_rng(4)
+    pad = max(m, offset + side)
+    n_pos, n_lines = 60, 37
+    e = np.zeros((n_pos + 2 * pad, n_lines), np.int16)
+    e[pad:-pad] = rng.integers(-255, 256, (n_pos, n_lines))
+    ref = ridge_reference(e, pad, m, offset, side)
+    hi = int(np.percentile(ref, 90))
+    best = np.empty(n_lines, np.int32)
+    pos = np.empty(n_lines, np.int32)
+    count = np.empty(n_lines, np.int32)
+    laser.ridge_kernel(e, n_pos, pad, m, offset, side, hi, hi // 2, best, pos, count)
+    assert np.array_equal(best, ref.max(0))
+    assert np.array_equal(pos, ref.argmax(0))
+    assert np.array_equal(count, runs_reference(ref, hi, hi // 2))
+
+
+def isolated_reference(peak: np.ndarray, support: int, jump: float) -> np.ndarray:
+    keep = np.zeros(len(peak), bool)
+    for i in np.nonzero(np.isfinite(peak))[0]:
+        j = np.arange(max(0, i - support), min(len(peak), i + support + 1))
+        j = j[j != i]
+        keep[i] = np.sum(np.abs(peak[j] - peak[i]) <= jump * np.abs(j - i)) >= support
+    return keep
+
+
+def test_drop_isolated_example():
+    peak = np.array([10.0, 11.0, 12.0, np.nan, 50.0, 13.0, 14.0, 15.0, 16.0])
+    flags = np.zeros(9, np.uint8)
+    laser.drop_isolated(peak, flags, 0, 9, 2, 3.0)
+    assert np.isnan(peak[4]) and flags[4] == Flag.ISOLATED  # 50: no neighbour
+    assert np.all(np.isfinite(np.delete(peak, [3, 4]))) and not np.delete(flags, 4).any()
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 10**6), support=st.integers(1, 3))
+def test_drop_isolated_matches_numpy(seed, support):
+    rng = np.random.default_rng(seed)
+    peak = np.cumsum(rng.normal(0, 2, 40)) + 100
+    peak[rng.random(40) < 0.2] = np.nan
+    peak[rng.random(40) < 0.1] += 80
+    expected = isolated_reference(peak, support, 4.0)
+    flags = np.zeros(40, np.uint8)
+    out = peak.copy()
+    laser.drop_isolated(out, flags, 0, 40, support, 4.0)
+    assert np.array_equal(np.isfinite(out), expected)
+    assert np.array_equal(flags == Flag.ISOLATED, np.isfinite(peak) & ~expected)
+
+
+@settings(max_examples=60, deadline=None)
+@given(offset=st.floats(-0.5, 0.5), sigma=st.floats(1.0, 3.0))
+def test_estimators_on_sampled_gaussian(offset, sigma):
+    """Point-sampled noiseless Gaussian: gauss3 is exact, lsq converges; references agree."""
+    x = np.arange(11.0)
+    g = gaussian(x, 100.0, 5 + offset, sigma)
+    clipped = np.zeros(11, bool)
+    assert laser.offset_gauss3(g, 11, 5) == pytest.approx(offset, abs=1e-9)
+    assert laser.offset_gauss3(g, 11, 5) == pytest.approx(gauss3_reference(g, 5), abs=1e-12)
+    assert laser.offset_blais_rioux(g, 11, 5) == pytest.approx(
+        blais_rioux_reference(g, 5), abs=1e-12)
+    assert laser.offset_blais_rioux(g, 11, 5) == pytest.approx(offset, abs=0.06)
+    lsq = laser.peak_offset(g, 11, 5, clipped, laser.EST_LSQ, 5)
+    assert lsq == pytest.approx(offset, abs=1e-3)  # stops at steps below 1e-4 px
+    com = laser.offset_com(g, 11, 5, 5)
+    assert com == pytest.approx(np.sum(g * (x - 5)) / g.sum(), abs=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(offset=st.floats(-0.5, 0.5), level=st.floats(0.5, 0.95), seed=st.integers(0, 10**6))
+def test_lsq_on_clipped_noisy_peak_agrees_with_scipy(offset, level, seed):
+    """The fit of the unclipped flanks matches scipy's curve_fit on the same samples."""
+    rng = np.random.default_rng(seed)
+    x = np.arange(13.0)
+    g = gaussian(x, 100.0, 6 + offset, 1.8) + rng.normal(0, 1.0, 13)
+    top = level * 100.0
+    clipped = g >= top
+    g = np.minimum(g, top)
+    ours = laser.peak_offset(g, 13, 6, clipped, laser.EST_LSQ, 6)
+    keep = ~clipped
+    popt, _ = curve_fit(gaussian, x[keep], g[keep], p0=(100.0, 6 + offset, 1.8))
+    assert ours == pytest.approx(popt[1] - 6, abs=3e-3)  # both stop near 1e-4 px steps
+    if clipped.sum() >= 2:  # the others use the half-height edges of the flat top
+        edges = laser.peak_offset(g, 13, 6, clipped, laser.EST_BLAIS_RIOUX, 6)
+        assert edges == pytest.approx(offset, abs=0.25)
+
+
+def test_estimators_are_shift_equivariant():
+    rng = np.random.default_rng(5)
+    x = np.arange(20.0)
+    g = gaussian(x, 80.0, 9.3, 1.5) + rng.normal(0, 2, 20)
+    clipped = np.zeros(20, bool)
+    for est in range(5):
+        a = laser.peak_offset(g, 20, 9, clipped, est, 5) + 9
+        b = laser.peak_offset(g[1:], 19, 8, clipped, est, 5) + 8 + 1
+        assert a == pytest.approx(b, abs=1e-9)
+
+
+# ---------------------------------------------------------------- accuracy on rendered truth
+
+
+def rms_error(result, truth):
+    err = result.peak - truth
+    found = np.isfinite(err)
+    return found.mean(), float(np.sqrt(np.mean(err[found] ** 2))), np.abs(err[found]).max()
+
+
+@pytest.mark.parametrize(("estimator", "bound"), [
+    ("blais_rioux", 0.035), ("lsq", 0.035), ("gauss3", 0.05), ("com", 0.09), ("max", 0.33)])
+def test_subpixel_accuracy_dark_sigma_1_5(estimator, bound):
+    """sigma 1.5 px, amplitude 180 over noise 2 (SNR 90): RMS error against the exact centre."""
+    image, truth = stripe_frame(np.random.default_rng(11))
+    found, rms, _ = rms_error(extract_stripe(image, LaserSettings(estimator=estimator)), truth)
+    assert found == 1.0
+    assert rms < bound
+
+
+def test_default_estimator_under_noise_saturation_and_mjpg():
+    rng = np.random.default_rng(12)
+    cases = {  # scene -> RMS bound (px); MJPG chroma quantisation dominates its error
+        "noise 5": (dict(noise=5.0), 0.06),
+        "saturated core": (dict(amplitude=600.0), 0.05),
+        "mjpg": (dict(jpeg=85), 0.22),
+        "saturated mjpg": (dict(amplitude=600.0, jpeg=85), 0.2),
+        "bright mjpg": (dict(level=120.0, amplitude=150.0, jpeg=85), 0.3),
+    }
+    for name, (kwargs, bound) in cases.items():
+        image, truth = stripe_frame(rng, **kwargs)
+        result = extract_stripe(image)
+        found, rms, worst = rms_error(result, truth)
+        assert found > 0.99, name
+        assert rms < bound, name
+        assert worst < 1.5, name
+
+
+@pytest.mark.parametrize("method", ["bright", "dark"])
+def test_white_saturated_core_is_found_flagged_and_centred(method):
+    image, truth = stripe_frame(np.random.default_rng(13), amplitude=2000.0,
+                                colour=np.array([0.15, 0.25, 1.0]))  # white core, red flanks
+    assert (image[np.rint(truth).astype(int), np.arange(640)] >= 250).all()
+    result = extract_stripe(image, LaserSettings(method=method))
+    assert np.all(result.flags & Flag.SATURATED)
+    found, rms, _ = rms_error(result, truth)
+    assert found > 0.99 and rms < 0.1
+
+
+def test_white_line_without_red_flanks_is_not_laser():
+    """A thin clipped white line (a lamp's reflection) passes the clipped-core rule but has no
+    red flanks."""
+    image, _ = stripe_frame(np.random.default_rng(23), amplitude=900.0,
+                                colour=np.array([1.0, 1.0, 1.0]))
+    result = extract_stripe(image)
+    assert np.isfinite(result.peak).mean() < 0.01
+    assert np.mean(result.flags & Flag.NOT_RED > 0) > 0.9
+
+
+def test_red_objects_are_not_the_laser():
+    """Bright room with red boxes: every peak is on the stripe; none on a box."""
+    rng = np.random.default_rng(14)
+    image, truth = stripe_frame(rng, level=120.0, amplitude=150.0, red_objects=6)
+    result = extract_stripe(image)
+    err = result.peak - truth
+    assert np.all(np.abs(err[np.isfinite(err)]) < 1.0)
+    assert np.isfinite(err).mean() > 0.85  # a stripe on a clipped red box is invisible
+
+
+def test_second_weaker_stripe_flags_multiple_and_keeps_best():
+    rng = np.random.default_rng(15)
+    image, truth = stripe_frame(rng, amplitude=150.0)
+    ghost, _ = stripe_frame(rng, amplitude=60.0, level=0.0, noise=0.0,
+                            truth=np.clip(truth + 120, 0, 470))
+    image = np.clip(image.astype(int) + ghost, 0, 255).astype(np.uint8)
+    result = extract_stripe(image)
+    assert np.mean(result.flags & Flag.MULTIPLE > 0) > 0.9
+    assert np.all(np.abs(result.peak - truth) < 0.5)
+
+
+def test_dark_method_with_automatic_and_manual_threshold():
+    image, truth = stripe_frame(np.random.default_rng(16), level=30.0)
+    auto = extract_stripe(image, LaserSettings(method="dark"))
+    manual = extract_stripe(image, LaserSettings(method="dark", colour_threshold=150))
+    assert 60 < auto.colour_threshold < 180
+    for result in (auto, manual):
+        found, rms, _ = rms_error(result, truth)
+        assert found > 0.99 and rms < 0.05
+
+
+def test_bright_room_needs_no_tuning():
+    """The same default settings in a bright room, the stripe's red clipped on most lines."""
+    image, truth = stripe_frame(np.random.default_rng(17), level=150.0, amplitude=120.0)
+    result = extract_stripe(image)
+    found, rms, _ = rms_error(result, truth)
+    assert np.mean(result.flags & Flag.SATURATED > 0) > 0.5
+    assert found > 0.95 and rms < 0.25
+
+
+def test_rows_axis_equals_transposed_columns():
+    image, _ = stripe_frame(np.random.default_rng(18), height=200, width=160)
+    cols = extract_stripe(image)
+    rows = extract_stripe(np.ascontiguousarray(image.transpose(1, 0, 2)),
+                          LaserSettings(axis="rows"))
+    assert np.array_equal(cols.peak, rows.peak, equal_nan=True)
+    assert np.array_equal(cols.flags, rows.flags)
+
+
+def test_line_range_skips_lines():
+    image, truth = stripe_frame(np.random.default_rng(19))
+    result = extract_stripe(image, LaserSettings(line_range=(0, 560)))
+    assert np.all(result.flags[560:] == Flag.SKIPPED) and np.all(np.isnan(result.peak[560:]))
+    assert np.all(np.abs(result.peak[:560] - truth[:560]) < 0.2)
+
+
+def test_stripe_at_the_line_ends_is_flagged():
+    truth = np.linspace(1.2, 478.0, 640)
+    image, _ = stripe_frame(np.random.default_rng(20), truth=truth)
+    result = extract_stripe(image)
+    ends = (truth < 4) | (truth > 475)  # the fit window (+-5 px) is cut
+    assert np.all(result.flags[ends & np.isfinite(result.peak)] & Flag.AT_EDGE)
+    ok = np.isfinite(result.peak)
+    assert ok.mean() > 0.98
+    assert np.all(np.abs(result.peak[ok] - truth[ok]) < 1.0)
+
+
+# ---------------------------------------------------------------- hard cases
+
+
+@pytest.mark.parametrize(("scene", "methods"), [
+    ("dark", ("bright", "dark")), ("bright", ("bright",)), ("red boxes", ("bright",))])
+def test_no_laser_in_the_frame(scene, methods):
+    """Eq. 1 is the paper's method for dark rooms only; the bright method works in both."""
+    kwargs = {"dark": dict(red_objects=4), "bright": dict(level=140.0),
+              "red boxes": dict(level=120.0, red_objects=8)}[scene]
+    image, _ = stripe_frame(np.random.default_rng(21), amplitude=0.0, **kwargs)
+    for method in methods:
+        result = extract_stripe(image, LaserSettings(method=method))
+        assert np.isfinite(result.peak).mean() < 0.01
+
+
+@pytest.mark.parametrize("bgr", [(30, 30, 200), (0, 0, 255), (255, 255, 255), (0, 0, 0)])
+def test_uniform_frames_give_no_stripe(bgr):
+    """A red wall (the laser 'everywhere'), a clipped red wall, a saturated and a black frame."""
+    image = np.empty((480, 640, 3), np.uint8)
+    image[:] = bgr
+    for method in ("bright", "dark"):
+        result = extract_stripe(image, LaserSettings(method=method))
+        assert np.all(np.isnan(result.peak))
+        assert np.all(result.flags & Flag.NONE_FOUND)
+
+
+def test_noisy_red_wall_gives_no_stripe():
+    rng = np.random.default_rng(22)
+    wall = np.clip(rng.normal((30, 30, 200), 4, (480, 640, 3)), 0, 255).astype(np.uint8)
+    assert np.isfinite(extract_stripe(wall).peak).mean() < 0.01
+
+
+@pytest.mark.parametrize(("image", "message"), [
+    (np.zeros((480, 640, 3), np.float32), "dtype uint8"),
+    (np.zeros((480, 640), np.uint8), "shape"),
+    (np.zeros((480, 640, 4), np.uint8), "shape"),
+    ([[0]], "numpy BGR image"),
+    (np.zeros((10, 640, 3), np.uint8), "too short"),
+])
+def test_bad_frames_raise_scan_error(image, message):
+    with pytest.raises(ScanError, match=message):
+        extract_stripe(image)
+
+
+def test_wrong_size_frame_raises_when_size_is_set():
+    with pytest.raises(ScanError, match="expected 640x480"):
+        extract_stripe(np.zeros((640, 480, 3), np.uint8), LaserSettings(image_size=(640, 480)))
+
+
+@pytest.mark.parametrize("field", [dict(method="sunny"), dict(estimator="magic"),
+                                   dict(threshold=-3), dict(stripe_width=30.0),
+                                   dict(line_range=(5, 2)), dict(support=-1)])
+def test_bad_settings_raise_scan_error(field):
+    with pytest.raises(ScanError, match="LaserSettings"):
+        LaserSettings(**field)
+
+
+# ---------------------------------------------------------------- real images (read in place)
+
+REAL = "laser/ciclop_3dscanscience"
+
+
+def difference_agreement(on: np.ndarray, off: np.ndarray, result) -> tuple[np.ndarray,
+                                                                          np.ndarray]:
+    """Rows where the laser-on minus laser-off red shows a stripe, and whether the
+    single-frame peak lies on it (within 4 px of a position of at least half the row's
+    strongest smoothed difference)."""
+    diff = np.clip(on[:, :, 2].astype(np.float32) - off[:, :, 2], 0, None)
+    smooth = cv2.GaussianBlur(diff, (0, 0), 2.0)
+    stripe_rows = diff.max(1) >= 60
+    agree = np.zeros(on.shape[0], bool)
+    for row in np.nonzero(stripe_rows & np.isfinite(result.peak))[0]:
+        p = round(result.peak[row])
+        near = smooth[row, max(0, p - 4):p + 5]
+        agree[row] = near.max() >= 0.5 * smooth[row].max()
+    return stripe_rows, agree
+
+
+def test_real_laser_pair_single_frame_agrees_with_difference_and_ignores_cube():
+    folder = real_data(f"{REAL}/3.1_laser_segmentation")
+    on = cv2.imread(str(folder / "laser.png"))
+    off = cv2.imread(str(folder / "laser_background.png"))
+    result = extract_stripe(on, LaserSettings(axis="rows", stripe_width=8.0))
+    stripe_rows, agree = difference_agreement(on, off, result)
+    assert stripe_rows.sum() > 1000
+    assert agree[stripe_rows].mean() > 0.98  # measured 0.992
+    # the Rubik's cube's red faces, located in the laser-off frame: red excess left of the
+    # bust, above the turntable's red rim
+    excess = off[:, :, 2].astype(int) - off[:, :, :2].max(2)
+    cube = np.zeros(excess.shape, bool)
+    cube[:1100, :300] = excess[:1100, :300] > 30
+    rows = np.nonzero(cube.any(1))[0]
+    cols = np.nonzero(cube.any(0))[0]
+    assert len(rows) > 20 and len(cols) > 100
+    inside = ((result.peak[rows] >= cols.min() - 5) & (result.peak[rows] <= cols.max() + 5))
+    assert not inside.any()
+
+
+@pytest.mark.parametrize("suffix", ["", "-x"])
+def test_real_two_laser_pattern_pairs(suffix):
+    """Two laser lines on a calibration board: each found peak lies on one of them."""
+    folder = real_data(f"{REAL}/3.2_laser_in_pattern")
+    on = cv2.imread(str(folder / f"laser-0-255-255-8{suffix}.png"))
+    off = cv2.imread(str(folder / f"laser-background-0-255-255-8{suffix}.png"))
+    result = extract_stripe(on, LaserSettings(axis="rows", stripe_width=8.0))
+    stripe_rows, agree = difference_agreement(on, off, result)
+    assert agree[stripe_rows].mean() > 0.88  # measured 0.96 and 0.92
+    multiple = result.flags[stripe_rows] & Flag.MULTIPLE > 0
+    assert multiple.mean() > 0.5  # both lines are candidates on most rows
+
+
+def test_real_frames_are_not_rotated_in_the_hot_path():
+    """Sanity for the axis option: the same real frame transposed gives the same peaks."""
+    folder = real_data(f"{REAL}/3.1_laser_segmentation")
+    on = cv2.imread(str(folder / "laser.png"))[::2, ::2].copy()
+    rows = extract_stripe(on, LaserSettings(axis="rows", stripe_width=4.0))
+    cols = extract_stripe(np.ascontiguousarray(on.transpose(1, 0, 2)),
+                          LaserSettings(stripe_width=4.0))
+    assert np.array_equal(rows.peak, cols.peak, equal_nan=True)
+    assert math.isclose(rows.threshold, cols.threshold)
