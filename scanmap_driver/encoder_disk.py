@@ -4,10 +4,16 @@ The disk is fixed to the robot (`base_link`), centred on the head's axis, face u
 seen at the bottom of every camera frame as the head turns above it. Its single track
 carries a de Bruijn sequence B(2, 5): every run of 5 consecutive sectors is unique, so
 any visible run of 5 sectors fixes the heading absolutely (DESIGN.md).
+
+`disk_artwork` lays the disk out for printing at 1:1 with alignment marks; it is written
+as SVG, PDF or PNG (`scanmap encoder-disk`).
 """
 
 from __future__ import annotations
 
+import math
+import struct
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,3 +96,224 @@ class EncoderDisk:
         """Printed value (0 or 1) of the ring at `base_link` angles (rad)."""
         index = np.floor((np.asarray(angle) - self.zero_offset) / self.sector_angle)
         return self.bits()[index.astype(np.int64) % self.sectors]
+
+
+# ---------------------------------------------------------------------------------
+# Printable artwork: one list of shapes in millimetres (page x right, y down), written
+# as SVG, PDF (vector, written here) or PNG (rasterised with OpenCV). Seen from above,
+# the print's +x (forward) points right and +y (left) up, so sectors run counter-clockwise.
+
+PAGE_MARGIN = 12.0  # mm around the disk's marks
+ARC_STEP = math.radians(0.25)  # polygon step along the arcs: 0.5 um from a true arc at 50 mm
+COLOURS = {"black": (0.0, 0.0, 0.0), "white": (1.0, 1.0, 1.0), "red": (0.85, 0.0, 0.0)}
+
+
+@dataclass(frozen=True)
+class Polygon:
+    """A filled polygon (mm)."""
+
+    points: tuple[tuple[float, float], ...]
+    fill: str
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """A polyline (mm), `width` mm wide; closed for circles."""
+
+    points: tuple[tuple[float, float], ...]
+    width: float
+    colour: str
+    closed: bool = False
+
+
+@dataclass(frozen=True)
+class Label:
+    """Text with its baseline starting at `at` (mm), `size` mm high."""
+
+    at: tuple[float, float]
+    text: str
+    size: float
+    colour: str = "black"
+
+
+@dataclass(frozen=True)
+class Artwork:
+    """The page (mm), the disk's centre on it (mm) and the shapes, drawn in order."""
+
+    width: float
+    height: float
+    centre: tuple[float, float]
+    shapes: tuple[Polygon | Stroke | Label, ...]
+
+
+def disk_artwork(disk: EncoderDisk, outer_radius: float | None = None) -> Artwork:
+    """The printable disk at 1:1: code ring, cut circles, centre cross, zero and axis marks,
+    a 50 mm scale bar and a caption.
+
+    outer_radius (m) scales the ring (the inner radius keeps its ratio); default: the
+    disk's own. Sector k spans [k, k+1) * sector angle from the print's +x axis (the red
+    zero mark), so `value_at` of the printed disk is the code with zero_offset 0; the
+    offset of the mounted disk is calibrated.
+    """
+    outer = disk.outer_radius if outer_radius is None else float(outer_radius)
+    if not (math.isfinite(outer) and 0.005 <= outer <= 0.5):
+        raise CalibrationError(f"encoder disk radius: expected 0.005..0.5 m, got {outer_radius}")
+    r1 = 1000.0 * outer
+    r0 = r1 * disk.inner_radius / disk.outer_radius
+    reach = r1 + 12.0
+    width = max(2.0 * (reach + PAGE_MARGIN) + 40.0, 150.0)  # room for the labels
+    height = 2.0 * (reach + PAGE_MARGIN) + 28.0
+    c = (width / 2.0 - 20.0, PAGE_MARGIN + reach)
+
+    def at(radius: float, angle: float) -> tuple[float, float]:
+        return (c[0] + radius * math.cos(angle), c[1] - radius * math.sin(angle))
+
+    def arc(radius: float, a0: float, a1: float) -> list[tuple[float, float]]:
+        n = max(2, math.ceil(abs(a1 - a0) / ARC_STEP) + 1)
+        return [at(radius, a0 + (a1 - a0) * i / (n - 1)) for i in range(n)]
+
+    step = 2.0 * math.pi / disk.sectors
+    shapes: list[Polygon | Stroke | Label] = []
+    for k, bit in enumerate(disk.code):
+        if bit == "0":
+            a0, a1 = k * step, (k + 1) * step
+            shapes.append(Polygon(tuple(arc(r1, a0, a1) + arc(r0, a1, a0)), "black"))
+    for radius in (r0, r1):
+        shapes.append(Stroke(tuple(arc(radius, 0.0, 2.0 * math.pi)[:-1]), 0.2, "black", True))
+    shapes.append(Stroke((at(3.0, math.pi), at(3.0, 0.0)), 0.2, "black"))
+    shapes.append(Stroke((at(3.0, -math.pi / 2), at(3.0, math.pi / 2)), 0.2, "black"))
+    for quarter, name in enumerate(("+x forward, sector 0", "+y left", "", "")):
+        angle = quarter * math.pi / 2
+        colour = "red" if quarter == 0 else "black"
+        shapes.append(Stroke((at(r1 + 2.0, angle), at(r1 + 10.0, angle)), 0.4, colour))
+        if name:
+            x, y = at(r1 + 2.0, angle)
+            shapes.append(Label((x + 1.0, y - 2.0) if quarter == 0 else (x + 2.0, y - 4.0),
+                                name, 2.5, colour))
+    top = PAGE_MARGIN + 2.0 * reach + 6.0
+    shapes.append(Polygon(((PAGE_MARGIN, top), (PAGE_MARGIN + 50.0, top),
+                           (PAGE_MARGIN + 50.0, top + 2.0), (PAGE_MARGIN, top + 2.0)), "black"))
+    shapes.append(Label((PAGE_MARGIN, top + 7.0),
+                        "50 mm: print at 100 % and check with a ruler", 3.0))
+    shapes.append(Label((PAGE_MARGIN, top + 12.0),
+                        f"ring {2 * r0:.1f}-{2 * r1:.1f} mm diameter, {disk.sectors} sectors", 2.5))
+    shapes.append(Label((PAGE_MARGIN, top + 16.0),
+                        "counter-clockwise seen from above, 1 = white", 2.5))
+    shapes.append(Label((PAGE_MARGIN, top + 20.0), f"code {disk.code}", 2.5))
+    return Artwork(width=width, height=height, centre=c, shapes=tuple(shapes))
+
+
+def artwork_svg(art: Artwork) -> str:
+    """The artwork as an SVG document at 1:1 (mm)."""
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{art.width:.3f}mm" '
+           f'height="{art.height:.3f}mm" viewBox="0 0 {art.width:.3f} {art.height:.3f}">',
+           f'<rect width="{art.width:.3f}" height="{art.height:.3f}" fill="white"/>']
+    for shape in art.shapes:
+        if isinstance(shape, Polygon):
+            pts = " ".join(f"{x:.4f},{y:.4f}" for x, y in shape.points)
+            out.append(f'<polygon points="{pts}" fill="{shape.fill}"/>')
+        elif isinstance(shape, Stroke):
+            pts = " ".join(f"{x:.4f},{y:.4f}" for x, y in shape.points)
+            tag = "polygon" if shape.closed else "polyline"
+            out.append(f'<{tag} points="{pts}" fill="none" stroke="{shape.colour}" '
+                       f'stroke-width="{shape.width}"/>')
+        else:
+            text = shape.text.replace("&", "&amp;").replace("<", "&lt;")
+            out.append(f'<text x="{shape.at[0]:.3f}" y="{shape.at[1]:.3f}" '
+                       f'font-family="Helvetica, Arial, sans-serif" '
+                       f'font-size="{shape.size}" fill="{shape.colour}">{text}</text>')
+    out.append("</svg>")
+    return "\n".join(out) + "\n"
+
+
+def artwork_pdf(art: Artwork) -> bytes:
+    """The artwork as a one-page vector PDF at 1:1 (A4 when it fits)."""
+    pt = 72.0 / 25.4
+    page_w, page_h = max(210.0, art.width), max(297.0, art.height)
+    dx, dy = (page_w - art.width) / 2.0, (page_h - art.height) / 2.0
+
+    def xy(p: tuple[float, float]) -> str:
+        return f"{(p[0] + dx) * pt:.3f} {(page_h - p[1] - dy) * pt:.3f}"
+
+    ops = []
+    for shape in art.shapes:
+        if isinstance(shape, Label):
+            rgb = " ".join(f"{v:g}" for v in COLOURS[shape.colour])
+            text = shape.text.replace("\\", "\\\\").replace("(", "\\(").replace(")", "\\)")
+            ops.append(f"{rgb} rg BT /F1 {shape.size * pt:.3f} Tf {xy(shape.at)} Td "
+                       f"({text}) Tj ET")
+            continue
+        path = [f"{xy(shape.points[0])} m"] + [f"{xy(p)} l" for p in shape.points[1:]]
+        if isinstance(shape, Polygon):
+            rgb = " ".join(f"{v:g}" for v in COLOURS[shape.fill])
+            ops.append(f"{rgb} rg " + " ".join(path) + " h f")
+        else:
+            rgb = " ".join(f"{v:g}" for v in COLOURS[shape.colour])
+            close = " h" if shape.closed else ""
+            ops.append(f"{rgb} RG {shape.width * pt:.3f} w " + " ".join(path) + close + " S")
+    content = "\n".join(ops).encode("ascii")
+    objects = [
+        b"<< /Type /Catalog /Pages 2 0 R >>",
+        b"<< /Type /Pages /Kids [3 0 R] /Count 1 >>",
+        (f"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 {page_w * pt:.3f} {page_h * pt:.3f}] "
+         "/Resources << /Font << /F1 5 0 R >> >> /Contents 4 0 R >>").encode("ascii"),
+        b"<< /Length %d >>\nstream\n" % len(content) + content + b"\nendstream",
+        b"<< /Type /Font /Subtype /Type1 /BaseFont /Helvetica >>",
+    ]
+    pdf = bytearray(b"%PDF-1.4\n")
+    offsets = []
+    for number, body in enumerate(objects, start=1):
+        offsets.append(len(pdf))
+        pdf += b"%d 0 obj\n" % number + body + b"\nendobj\n"
+    xref = len(pdf)
+    pdf += b"xref\n0 %d\n0000000000 65535 f \n" % (len(objects) + 1)
+    for offset in offsets:
+        pdf += b"%010d 00000 n \n" % offset
+    pdf += b"trailer\n<< /Size %d /Root 1 0 R >>\nstartxref\n%d\n%%%%EOF\n" % (
+        len(objects) + 1, xref)
+    return bytes(pdf)
+
+
+def artwork_png(art: Artwork, dpi: float = 600.0) -> bytes:
+    """The artwork rasterised at `dpi` (antialiased), as PNG bytes with the dpi recorded."""
+    import cv2
+
+    if not 50.0 <= dpi <= 2400.0:
+        raise CalibrationError(f"encoder disk dpi: expected 50..2400, got {dpi}")
+    shift = 4
+    scale = dpi / 25.4 * (1 << shift)
+    size = (round(art.height * dpi / 25.4), round(art.width * dpi / 25.4))
+    image = np.full((*size, 3), 255, np.uint8)
+
+    def px(points: tuple[tuple[float, float], ...]) -> np.ndarray:
+        return np.round(np.array(points) * scale - (1 << shift) / 2).astype(np.int32)
+
+    def bgr(name: str) -> tuple[int, int, int]:
+        r, g, b = COLOURS[name]
+        return round(255 * b), round(255 * g), round(255 * r)
+
+    for shape in art.shapes:
+        if isinstance(shape, Polygon):
+            cv2.fillPoly(image, [px(shape.points)], bgr(shape.fill), cv2.LINE_AA, shift)
+        elif isinstance(shape, Stroke):
+            thickness = max(1, round(shape.width * dpi / 25.4))
+            cv2.polylines(image, [px(shape.points)], shape.closed, bgr(shape.colour),
+                          thickness, cv2.LINE_AA, shift)
+        else:
+            height_px = shape.size * dpi / 25.4
+            origin = (round(shape.at[0] * dpi / 25.4), round(shape.at[1] * dpi / 25.4))
+            cv2.putText(image, shape.text, origin, cv2.FONT_HERSHEY_SIMPLEX, height_px / 22.0,
+                        bgr(shape.colour), max(1, round(height_px / 12)), cv2.LINE_AA)
+    ok, data = cv2.imencode(".png", image)
+    if not ok:
+        raise CalibrationError("encoder disk: PNG encoding failed")
+    return _with_dpi(data.tobytes(), dpi)
+
+
+def _with_dpi(png: bytes, dpi: float) -> bytes:
+    """Insert a pHYs chunk (pixels per metre) after the PNG's IHDR, so it prints to scale."""
+    per_metre = round(dpi / 0.0254)
+    body = b"pHYs" + struct.pack(">IIB", per_metre, per_metre, 1)
+    chunk = struct.pack(">I", 9) + body + struct.pack(">I", zlib.crc32(body) & 0xFFFFFFFF)
+    end_of_ihdr = 8 + 8 + 13 + 4
+    return png[:end_of_ihdr] + chunk + png[end_of_ihdr:]

@@ -14,6 +14,7 @@ defocus-blurred with a Gaussian.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -96,13 +97,16 @@ def stripe_frame(rng: np.random.Generator, *, height: int = 480, width: int = 64
 
 
 def disk_points(model: ScannerModel, heading: float, step: float = 6e-5,
-                arc: float = math.radians(55.0)) -> tuple[np.ndarray, np.ndarray]:
-    """Points (N, 3) on the printed ring in `base_link`, and their printed value (0/1).
+                arc: float = math.radians(55.0),
+                texture: Callable[[np.ndarray], np.ndarray] | None = None,
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Points (N, 3) on the printed ring in `base_link`, and their printed value (0..1).
 
     The disk is centred on the head's axis, perpendicular to it, with its face at
     `base_link` height `encoder.height` on the axis; its angles are measured in the
     mount frame. Only base angles within `arc` of the heading are sampled: the camera
-    sees the front arc of the ring.
+    sees the front arc of the ring. texture: value at disk-frame (N, 2) x, y (m), by
+    default the model's code (`value_at`).
     """
     enc = model.encoder
     radii = np.arange(enc.inner_radius + step / 2, enc.outer_radius, step)
@@ -114,18 +118,20 @@ def disk_points(model: ScannerModel, heading: float, step: float = 6e-5,
     local = np.column_stack([rr.ravel() * np.cos(aa.ravel()), rr.ravel() * np.sin(aa.ravel()),
                              np.full(rr.size, lift)])
     base = np.einsum("ij,nj->ni", mount[:3, :3], local) + mount[:3, 3]
-    return base, enc.value_at(aa.ravel()).astype(np.float64)
+    values = enc.value_at(aa.ravel()) if texture is None else texture(local[:, :2])
+    return base, np.asarray(values, dtype=np.float64)
 
 
 def disk_frame(model: ScannerModel, heading: float, rng: np.random.Generator, *,
                blur: float = 4.0, noise: float = 2.0, dark: float = 40.0, light: float = 200.0,
-               background: float = 90.0, jpeg: int | None = None) -> np.ndarray:
+               background: float = 90.0, jpeg: int | None = None,
+               texture: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """A BGR frame showing the encoder disk at `heading`, rendered forward (see module doc).
 
-    Pixels that see no part of the ring show a flat `background`.
+    Pixels that see no part of the ring show a flat `background`; texture: see disk_points.
     """
     cam = model.camera
-    base, values = disk_points(model, heading)
+    base, values = disk_points(model, heading, texture=texture)
     pose = invert_pose(model.head_pose(heading))
     head = np.einsum("ij,nj->ni", pose[:3, :3], base) + pose[:3, 3]
     pix = project(model, head)
