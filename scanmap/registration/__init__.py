@@ -1,0 +1,33 @@
+"""Registration: each scan's pose from ICP against a local map, honest about what it knows.
+
+Entry points: `ScanOdometry` registers a sequence of scans (odometry prior, de-skew,
+local map, recovery); `register_scan` registers one prepared scan (`prepare_source`)
+against a `LocalMap` with a `Prior`. Results are `RegistrationResult`s with a pose,
+covariance, fitness, inlier RMSE, degenerate directions and a `Status`.
+"""
+
+from .config import RegistrationConfig
+from .degeneracy import Degeneracy, analyse_degeneracy
+from .deskew import deskew_points
+from .local_map import LocalMap
+from .matcher import register_scan
+from .odometry import ScanOdometry
+from .preprocess import Source, prepare_source
+from .prior import OdometryNoise, Prior
+from .result import RegistrationResult, Status
+
+__all__ = [
+    "Degeneracy",
+    "LocalMap",
+    "OdometryNoise",
+    "Prior",
+    "RegistrationConfig",
+    "RegistrationResult",
+    "ScanOdometry",
+    "Source",
+    "Status",
+    "analyse_degeneracy",
+    "deskew_points",
+    "prepare_source",
+    "register_scan",
+]

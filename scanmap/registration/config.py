@@ -1,0 +1,97 @@
+"""Settings of scan-to-map registration, with the reasoning behind each default.
+
+Defaults suit the reference scanner: 0.3-4 m ranges, floor to 1 m height, about
+20,000 points per 360 deg scan, indoor robot on a flat floor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from scanmap_driver.errors import RegistrationError
+
+
+@dataclass(frozen=True)
+class RegistrationConfig:
+    """How a scan is prepared, matched against the local map and judged.
+
+    planar: estimate (x, y, yaw) only (flat floor); False estimates full SE(3).
+    voxel_size: source downsampling (m): one mean point per voxel. 0.1 m keeps walls,
+      door jambs and box faces while cutting 20,000 points to about 2,000.
+    map_voxel_size: edge (m) of the local map's plane-fitting voxels.
+    flatness: a voxel is a plane (line) when its thickness variance is at most this
+      fraction of its spread's; min_plane_points: points needed to judge a voxel.
+    scans_2d: the points come from a 2-D laser (all at one height, e.g. CARMEN logs):
+      a straight footprint is a wall. Otherwise (3-D scans) a wall is a near-vertical
+      plane, which a sliver of a table top cut by the voxel grid is not.
+    min_range, max_range: horizontal distance (m) from the scanner axis kept.
+    floor_band: planar mode drops points below this height (m): the floor constrains
+      only z, roll and pitch, which planar mode does not estimate. SE(3) mode keeps them.
+    map_radius: the local map forgets voxels farther than this (m) from the robot.
+    map_max_count: points' worth of statistics a map voxel keeps (older ones fade).
+    max_normal_angle: a match's map normal must agree with the source normal within this
+      (rad), or it is another surface.
+    max_iterations, tolerance: Gauss-Newton stops when a step is below tolerance
+      (m, and rad times 1 m).
+    initial_threshold: correspondence distance (m) until the adaptive threshold has
+      seen enough scans; min_threshold, max_threshold bound the adaptive one.
+    sigma_floor: model error (m) added in quadrature to each point's range sigma (map
+      planes and sampling are not exact).
+    default_range_sigma: range sigma (m) of points that carry none.
+    min_constraint: a direction is degenerate when the geometry constrains it less
+      than this many well-aligned points would.
+    min_points: fewer source points than this: too few to register.
+    min_fitness: fewer inliers than this fraction after all attempts: no overlap.
+    recovery_fitness: below this inlier fraction, a coarse (x, y, yaw) search around
+      the guess looks for a better start (large initial errors).
+    search_radius, search_angle: half-width of that search (m, rad).
+    max_correction, max_rotation: a result moved farther than this from the guess
+      (m, rad) is called diverged.
+    restart_after: after this many failed scans in a row the map is stale (the robot was
+      carried away, or the scene changed): it restarts from the next scan at its guess.
+    """
+
+    planar: bool = True
+    voxel_size: float = 0.1
+    map_voxel_size: float = 0.1
+    flatness: float = 0.1
+    min_plane_points: int = 4
+    scans_2d: bool = False
+    min_range: float = 0.3
+    max_range: float = 4.0
+    floor_band: float = 0.05
+    map_radius: float = 6.0
+    map_max_count: int = 30
+    max_normal_angle: float = 0.5
+    max_iterations: int = 20
+    tolerance: float = 1e-4
+    initial_threshold: float = 0.2
+    min_threshold: float = 0.05
+    max_threshold: float = 0.3
+    sigma_floor: float = 0.01
+    default_range_sigma: float = 0.01
+    min_constraint: float = 10.0
+    min_points: int = 20
+    min_fitness: float = 0.25
+    recovery_fitness: float = 0.5
+    search_radius: float = 0.5
+    search_angle: float = 0.5
+    max_correction: float = 1.0
+    max_rotation: float = 0.8
+    restart_after: int = 3
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("planar", "scans_2d"):
+                continue
+            if not isinstance(value, (int, float)) or not value >= 0:
+                raise RegistrationError(f"RegistrationConfig.{f.name}: expected a number >= 0, "
+                                        f"got {value!r}")
+        if not (self.voxel_size > 0 and self.map_voxel_size > 0):
+            raise RegistrationError("RegistrationConfig: voxel sizes must be positive")
+        if not self.min_range < self.max_range:
+            raise RegistrationError(f"RegistrationConfig: min_range {self.min_range} must be "
+                                    f"below max_range {self.max_range}")
+        if not self.min_threshold <= self.max_threshold:
+            raise RegistrationError("RegistrationConfig: min_threshold > max_threshold")

@@ -1,0 +1,71 @@
+"""Pose increments: 6-vectors (translation, rotation vector) in the body frame.
+
+Registration perturbs a pose on the right, T' = T * exp(delta), with the decoupled
+exponential exp(rho, phi) = [Exp(phi) | rho]: rho moves the body along its own axes and
+phi turns it about its own origin, so the lever arm of a rotation is a point's range
+(metres), not its distance from a far map origin. Planar poses use (x, y, yaw) = the
+components 0, 1, 5 of the 6-vector.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+PLANAR_AXES = np.array([0, 1, 5])  # x, y, yaw inside (x, y, z, roll, pitch, yaw)
+
+
+def so3_exp(phi: np.ndarray) -> np.ndarray:
+    """3x3 rotation of a rotation vector (Rodrigues)."""
+    phi = np.asarray(phi, dtype=np.float64)
+    angle = float(np.linalg.norm(phi))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = phi / angle
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * (kx @ kx)
+
+
+def so3_log(rotation: np.ndarray) -> np.ndarray:
+    """Rotation vector of a 3x3 rotation (angle in [0, pi])."""
+    cos_angle = np.clip((np.trace(rotation) - 1.0) / 2.0, -1.0, 1.0)
+    angle = float(np.arccos(cos_angle))
+    axis = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
+                     rotation[1, 0] - rotation[0, 1]])
+    if angle < 1e-6:
+        return 0.5 * axis
+    if np.pi - angle < 1e-4:  # near pi the antisymmetric part vanishes: use the diagonal
+        k = np.sqrt(np.maximum((np.diag(rotation) + 1.0) / 2.0, 0.0))
+        i = int(np.argmax(k))
+        k = (rotation[:, i] + np.eye(3)[:, i]) / (2.0 * k[i])
+        return angle * k / np.linalg.norm(k)
+    return angle / (2.0 * np.sin(angle)) * axis
+
+
+def pose_exp(delta: np.ndarray) -> np.ndarray:
+    """4x4 pose of a 6-vector (translation, rotation vector), decoupled."""
+    pose = np.eye(4)
+    pose[:3, :3] = so3_exp(delta[3:])
+    pose[:3, 3] = delta[:3]
+    return pose
+
+
+def pose_log(pose: np.ndarray) -> np.ndarray:
+    """6-vector (translation, rotation vector) of a 4x4 pose (inverse of `pose_exp`)."""
+    return np.concatenate([pose[:3, 3], so3_log(pose[:3, :3])])
+
+
+def retract(pose: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """pose * exp(delta), re-orthonormalised."""
+    out = pose @ pose_exp(delta)
+    u, _, vt = np.linalg.svd(out[:3, :3])
+    out[:3, :3] = u @ vt
+    return out
+
+
+def between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """6-vector taking pose `a` to pose `b` in a's body frame: log(a^-1 b)."""
+    rotation = a[:3, :3].T
+    relative = np.eye(4)
+    relative[:3, :3] = rotation @ b[:3, :3]
+    relative[:3, 3] = rotation @ (b[:3, 3] - a[:3, 3])
+    return pose_log(relative)

@@ -1,0 +1,70 @@
+"""One registration: align a prepared scan to the local map, recover, judge the outcome.
+
+The judgement is what keeps garbage out of the map: too few points, too few matches
+(no overlap), a non-finite or implausibly large correction (divergence) are reported as
+such, with the prior's pose, instead of a pose that merely minimised something.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .config import RegistrationConfig
+from .icp import ALL_AXES, Alignment, align
+from .lie import PLANAR_AXES, between
+from .local_map import LocalMap
+from .preprocess import Source
+from .prior import Prior
+from .recovery import coarse_search
+from .result import RegistrationResult, Status
+
+_RECOVERY_GAIN = 0.1  # the coarse search must beat the guess's score by this much
+
+
+def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: float,
+                  config: RegistrationConfig) -> RegistrationResult:
+    """Register `source` against `local_map`; the result's pose is map-local."""
+    if len(source) < config.min_points:
+        return _failure(prior, Status.TOO_FEW_POINTS, len(source),
+                        f"{len(source)} source points after filtering, need "
+                        f"{config.min_points}")
+    best = align(source, local_map, prior.pose, prior, threshold, config)
+    recovered = False
+    if _fitness(best, source) < config.recovery_fitness:
+        start, score, guess_score = coarse_search(source, local_map, prior.pose, config)
+        if score > guess_score + _RECOVERY_GAIN:
+            second = align(source, local_map, start, prior, threshold, config)
+            if second.finite and _fitness(second, source) > _fitness(best, source):
+                best, recovered = second, True
+    fitness = _fitness(best, source)
+    if not best.finite:
+        return _failure(prior, Status.DIVERGED, len(source), "the solution is not finite")
+    if fitness < config.min_fitness:
+        return _failure(prior, Status.NO_OVERLAP, len(source),
+                        f"only {fitness:.0%} of the points match the map "
+                        f"(need {config.min_fitness:.0%})", fitness)
+    correction = between(prior.pose, best.pose)
+    moved, turned = np.linalg.norm(correction[:3]), np.linalg.norm(correction[3:])
+    if moved > config.max_correction or turned > config.max_rotation:
+        return _failure(prior, Status.DIVERGED, len(source),
+                        f"correction of {moved:.2f} m, {np.degrees(turned):.0f} deg from the "
+                        "guess is beyond max_correction / max_rotation", fitness)
+    axes = PLANAR_AXES if config.planar else ALL_AXES
+    directions = np.zeros((int(best.degeneracy.degenerate.sum()), 6))
+    directions[:, axes] = best.degeneracy.degenerate_directions
+    return RegistrationResult(pose=best.pose, covariance=best.covariance, status=Status.OK,
+                              fitness=fitness, inlier_rmse=best.inlier_rmse,
+                              degenerate_directions=directions, iterations=best.iterations,
+                              recovered=recovered, num_points=len(source),
+                              message="recovered by coarse search" if recovered else "")
+
+
+def _fitness(alignment: Alignment, source: Source) -> float:
+    return alignment.inliers / max(len(source), 1)
+
+
+def _failure(prior: Prior, status: Status, num_points: int, message: str,
+             fitness: float = float("nan")) -> RegistrationResult:
+    return RegistrationResult(pose=prior.pose.copy(), covariance=prior.covariance.copy(),
+                              status=status, fitness=fitness, num_points=num_points,
+                              message=message)

@@ -1,0 +1,108 @@
+"""Plain-numpy references of the registration kernels: slow, obvious, for the tests."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+FACE_NEIGHBOURS = [(0, 0, 0), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1),
+                   (0, 0, -1)]
+
+
+def group_by_voxel(points: np.ndarray, voxel: float) -> dict[tuple, np.ndarray]:
+    """Indices of `points` grouped by voxel coordinates."""
+    cells = np.floor(points / voxel).astype(np.int64)
+    groups: dict[tuple, list] = {}
+    for i, cell in enumerate(map(tuple, cells)):
+        groups.setdefault(cell, []).append(i)
+    return {cell: np.array(idx) for cell, idx in groups.items()}
+
+
+def neighbourhood(groups: dict[tuple, np.ndarray], cell: tuple) -> np.ndarray:
+    """Indices of the points in `cell` and its 6 face neighbours."""
+    parts = [groups[c] for d in FACE_NEIGHBOURS
+             if (c := tuple(np.add(cell, d))) in groups]
+    return np.concatenate(parts)
+
+
+def wall_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, float]:
+    """(thin variance, long variance, horizontal unit normal, z variance) of points."""
+    cov = np.cov(points.T, bias=True)
+    values, vectors = np.linalg.eigh(cov[:2, :2])
+    normal = np.array([*vectors[:, 0], 0.0])
+    return float(values[0]), float(values[1]), normal, float(cov[2, 2])
+
+
+def deskew(points: np.ndarray, times: np.ndarray, motion: np.ndarray, t0: float,
+           t1: float) -> np.ndarray:
+    """Each point moved by the fraction s of `motion` (rotation vector and translation)."""
+    s = np.clip((times - t0) / (t1 - t0), 0.0, 1.0)
+    rotvec = Rotation.from_matrix(motion[:3, :3]).as_rotvec()
+    rotations = Rotation.from_rotvec(s[:, None] * rotvec)
+    return rotations.apply(points) + s[:, None] * motion[:3, 3]
+
+
+def correspondences(source, source_normals, source_var, pose, cells, means, normals,
+                    plane_var, usable, voxel, rings_xy, rings_z, max_dist, var_floor, min_cos):
+    """Per source point: (matched map index or -1, residual, weight before the kernel).
+
+    cells: (K, 3) integer voxel coordinates of the map entries (means may leave them).
+    """
+    index = {tuple(c): i for i, c in enumerate(cells)}
+    moved = source @ pose[:3, :3].T + pose[:3, 3]
+    turned = source_normals @ pose[:3, :3].T
+    out = []
+    for q, u, var in zip(moved, turned, source_var, strict=True):
+        base = np.floor(q / voxel - 0.5).astype(np.int64)
+        best, best_d2 = -1, np.inf
+        for d in itertools.product(range(1 - rings_xy, rings_xy + 1),
+                                   range(1 - rings_xy, rings_xy + 1),
+                                   range(1 - rings_z, rings_z + 1)):
+            j = index.get(tuple(base + d), -1)
+            if j < 0 or not usable[j] or (u.any() and abs(u @ normals[j]) < min_cos):
+                continue
+            d2 = float(np.sum((q - means[j]) ** 2))
+            if d2 < best_d2:
+                best, best_d2 = j, d2
+        if best < 0:
+            out.append((-1, np.nan, 0.0))
+            continue
+        r = float(normals[best] @ (q - means[best]))
+        if abs(r) > max_dist:
+            out.append((-1, r, 0.0))
+            continue
+        out.append((best, r, 1.0 / (var + plane_var[best] + var_floor)))
+    return out
+
+
+def normal_equations(source, source_normals, source_var, pose, cells, means, normals,
+                     plane_var, usable, voxel, rings_xy, rings_z, max_dist, kappa, var_floor,
+                     min_cos):
+    """H, g, stats as the kernel computes them, point by point."""
+    matches = correspondences(source, source_normals, source_var, pose, cells, means, normals,
+                              plane_var, usable, voxel, rings_xy, rings_z, max_dist,
+                              var_floor, min_cos)
+    hessian, gradient, stats = np.zeros((6, 6)), np.zeros(6), np.zeros(4)
+    for p, (j, r, w) in zip(source, matches, strict=True):
+        if j < 0:
+            continue
+        m = pose[:3, :3].T @ normals[j]
+        jac = np.concatenate([m, np.cross(p, m)])
+        w *= (kappa ** 2 / (kappa ** 2 + r ** 2)) ** 2
+        hessian += w * np.outer(jac, jac)
+        gradient += w * jac * r
+        stats += [1.0, r * r, w * r * r, w]
+    return hessian, gradient, stats
+
+
+def shift_scores(grid: np.ndarray, cells: np.ndarray, shifts: int) -> np.ndarray:
+    """Mean grid value of the cells shifted by every offset in [-shifts, shifts]^2."""
+    side = 2 * shifts + 1
+    out = np.zeros((side, side))
+    for a, b in itertools.product(range(side), range(side)):
+        moved = cells + [a - shifts, b - shifts]
+        inside = np.all((moved >= 0) & (moved < grid.shape), axis=1)
+        out[a, b] = grid[moved[inside, 0], moved[inside, 1]].sum()
+    return out / max(len(cells), 1)

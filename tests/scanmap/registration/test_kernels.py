@@ -1,0 +1,228 @@
+"""Each Numba kernel of registration against its plain-numpy reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.deskew import deskew_points
+from scanmap.registration.icp import evaluate
+from scanmap.registration.local_map import LINE, LocalMap
+from scanmap.registration.planes import PLANE, eigen_sym2, eigen_sym3, fit_voxel
+from scanmap.registration.preprocess import prepare_source
+from scanmap.registration.recovery import _shift_scores
+from scanmap.registration.voxel_hash import (
+    COORD_LIMIT,
+    build_table,
+    grown,
+    key_coords,
+    new_table,
+    table_find,
+    table_insert,
+    voxel_key,
+)
+from scanmap_driver.transforms import make_pose, rot_x, rot_z, se2_to_pose
+from tests.scanmap.registration import reference
+from tests.scanmap.registration.scenes import corridor, make_scan
+
+coords = st.integers(-COORD_LIMIT + 1, COORD_LIMIT - 1)
+
+
+@given(coords, coords, coords)
+def test_voxel_key_round_trips(ix, iy, iz):
+    key = voxel_key(ix, iy, iz)
+    assert key >= 0
+    assert key_coords(key) == (ix, iy, iz)
+
+
+def test_voxel_key_refuses_out_of_range():
+    assert voxel_key(COORD_LIMIT, 0, 0) == -1
+    assert voxel_key(0, -COORD_LIMIT, 0) == -1
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(coords, coords, coords), min_size=1, max_size=300))
+def test_hash_table_behaves_like_a_dict(cells):
+    keys, values = new_table(4)
+    expected = {}
+    for i, cell in enumerate(cells):
+        if 2 * (len(expected) + 1) > keys.size:
+            keys, values = grown(keys, values)
+        key = voxel_key(*cell)
+        expected.setdefault(key, i)
+        assert table_insert(keys, values, key, i) == expected[key]
+    for key, value in expected.items():
+        assert table_find(keys, values, key) == value
+    assert table_find(keys, values, voxel_key(COORD_LIMIT - 1, 5, 5)) in (
+        -1, expected.get(voxel_key(COORD_LIMIT - 1, 5, 5)))
+    unique = np.array(list(expected))
+    keys2, values2 = build_table(unique)
+    assert [table_find(keys2, values2, k) for k in unique] == list(range(len(unique)))
+
+
+symmetric = st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6)
+
+
+@given(symmetric)
+def test_eigen_sym3_matches_lapack(v):
+    m = np.array([[v[0], v[1], v[2]], [v[1], v[3], v[4]], [v[2], v[4], v[5]]])
+    l0, l1, l2, *n = eigen_sym3(v[0], v[1], v[2], v[3], v[4], v[5])
+    values, vectors = np.linalg.eigh(m)
+    # The trigonometric solution loses digits near a double root (acos of -1 or 1): 1e-7
+    # of the matrix scale, far below the thickness-to-spread ratios the fits test.
+    np.testing.assert_allclose([l0, l1, l2], values, atol=1e-7 * max(1.0, np.abs(v).max()))
+    if values[1] - values[0] > 1e-3:  # a well separated smallest eigenvalue: unique vector
+        assert abs(abs(np.dot(n, vectors[:, 0])) - 1.0) < 1e-8
+
+
+@given(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1))
+def test_eigen_sym2_matches_lapack(a, b, c):
+    small, large, nx, ny = eigen_sym2(a, b, c)
+    values, vectors = np.linalg.eigh(np.array([[a, b], [b, c]]))
+    np.testing.assert_allclose([small, large], values, atol=1e-9)
+    if values[1] - values[0] > 1e-6:
+        assert abs(abs(nx * vectors[0, 0] + ny * vectors[1, 0]) - 1.0) < 1e-6
+
+
+def _stats(points, variance=1e-6):
+    squares = np.array([points[:, 0] @ points[:, 0], points[:, 0] @ points[:, 1],
+                        points[:, 0] @ points[:, 2], points[:, 1] @ points[:, 1],
+                        points[:, 1] @ points[:, 2], points[:, 2] @ points[:, 2]])
+    return len(points), points.sum(axis=0), squares, variance * len(points)
+
+
+def _fit(points, scans_2d=False, variance=1e-6):
+    normal, line = np.zeros(3), np.zeros(3)
+    n, sums, squares, noise = _stats(points, variance)
+    flags, _, _ = fit_voxel(n, sums, squares, noise, 0.1, 4, 0.1, scans_2d, normal, line)
+    return flags, normal, line
+
+
+def test_fit_tells_walls_floors_and_corners_apart():
+    rng = np.random.default_rng(0)
+    u = rng.uniform(-0.05, 0.05, (40, 2))
+    wall = np.column_stack([0.8 * u[:, 0], -0.6 * u[:, 0], u[:, 1]])  # normal (0.6, 0.8, 0)
+    flags, normal, line = _fit(wall)
+    assert flags == PLANE | LINE
+    assert abs(abs(line @ [0.6, 0.8, 0.0]) - 1) < 1e-9
+    assert abs(abs(normal[:2] @ [0.6, 0.8]) - 1) < 1e-6
+    floor = np.column_stack([u, np.zeros(40)])
+    assert _fit(floor)[0] == PLANE  # a plane, but no wall: it does not rise
+    corner = np.vstack([np.column_stack([u[:20, 0], np.zeros(20), u[:20, 1]]),
+                        np.column_stack([np.zeros(20), u[20:, 0], u[20:, 1]])])
+    assert _fit(corner)[0] == 0
+    stripe = np.column_stack([0.8 * u[:, 0], -0.6 * u[:, 0], 1.7 * u[:, 0]])  # one laser line
+    assert _fit(stripe)[0] == LINE  # a wall's trace, though no plane in 3-D
+    scan_2d = np.column_stack([u[:, 0], 0.3 * u[:, 0], np.full(40, 0.3)])
+    assert _fit(scan_2d, scans_2d=False)[0] == 0  # flat: not a wall of a 3-D scan
+    assert _fit(scan_2d, scans_2d=True)[0] == LINE
+
+
+def test_fit_thickness_must_be_explained_by_noise():
+    rng = np.random.default_rng(1)
+    u = rng.uniform(-0.05, 0.05, (60, 2))
+    thick = np.column_stack([u[:, 0], rng.normal(0, 0.006, 60), u[:, 1]])
+    assert _fit(thick, variance=0.006 ** 2)[0] & LINE  # 6 mm noise, 6 mm thick: a wall
+    assert not _fit(thick, variance=0.001 ** 2)[0] & LINE  # 1 mm noise: not a wall
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 1000), st.floats(-0.3, 0.3))
+def test_deskew_matches_scipy(seed, turn):
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-4, 4, (200, 3))
+    times = np.sort(rng.uniform(10.0, 12.0, 200))
+    motion = make_pose(rot_z(turn) @ rot_x(0.05), [0.4, -0.1, 0.02])
+    ours = deskew_points(points, times, motion, 10.0, 12.0)
+    np.testing.assert_allclose(ours, reference.deskew(points, times, motion, 10.0, 12.0),
+                               atol=1e-10)
+    np.testing.assert_allclose(deskew_points(points, times, motion, 12.0, 10.0), points)
+
+
+def test_prepare_source_matches_reference():
+    rng = np.random.default_rng(2)
+    scan = make_scan(corridor(), (3.0, 0.1, 0.2), rng, columns=120, rows=30)
+    config = RegistrationConfig()
+    source = prepare_source(scan.points, config, scan.range_sigma)
+    points = scan.points.astype(np.float64)
+    r = np.hypot(points[:, 0], points[:, 1])
+    keep = (r >= config.min_range) & (r <= config.max_range) & (points[:, 2] >= 0.05)
+    points, r, sigma2 = points[keep], r[keep], scan.range_sigma[keep].astype(np.float64) ** 2
+    groups = reference.group_by_voxel(points, config.voxel_size)
+    inside, expected = [], []
+    for cell, idx in groups.items():
+        margin = 3 * np.sqrt(sigma2[idx].mean())
+        if r[idx].mean() + margin > config.max_range or r[idx].mean() - margin < 0.3:
+            continue  # within noise of a range limit: neither matched nor mapped
+        inside.append(idx)
+        near = reference.neighbourhood(groups, cell)
+        thin, long, _, zz = reference.wall_fit(points[near])
+        limit = min(0.1 * long, 9 * sigma2[near].mean() + 0.002 ** 2)
+        is_wall = thin <= limit and long >= 0.02 ** 2 / 12 and zz >= 0.02 ** 2 / 12
+        if len(near) < config.min_plane_points or is_wall:
+            expected.append(points[near].mean(axis=0))
+    assert 0 < len(np.concatenate(inside)) < len(points)
+    np.testing.assert_allclose(np.sort(source.cloud, axis=0),
+                               np.sort(points[np.concatenate(inside)], axis=0))
+    expected = np.array(expected)
+    assert 100 < len(source) == len(expected)
+    np.testing.assert_allclose(np.sort(source.points, axis=0), np.sort(expected, axis=0),
+                               atol=1e-9)
+
+
+def test_local_map_planes_match_reference():
+    rng = np.random.default_rng(3)
+    scan = make_scan(corridor(), (5.0, 0.0, 0.0), rng, columns=150, rows=30)
+    points = scan.points.astype(np.float64) + [5.0, 0.0, 0.0]
+    variance = scan.range_sigma.astype(np.float64) ** 2
+    local_map = LocalMap(voxel_size=0.1, max_count=10 ** 6)
+    local_map.insert(points, 1, variance)
+    groups = reference.group_by_voxel(points, 0.1)
+    assert len(local_map) == len(groups)
+    checked = 0
+    for slot in range(len(local_map)):
+        cell = key_coords(local_map.voxel_keys[slot])
+        near = reference.neighbourhood(groups, cell)
+        np.testing.assert_allclose(local_map.means[slot], points[near].mean(axis=0), atol=1e-9)
+        if local_map.flags[slot] & LINE:
+            _, _, normal, _ = reference.wall_fit(points[near])
+            assert abs(abs(normal @ local_map.line_normals[slot]) - 1) < 1e-6
+            checked += 1
+    assert checked > 50
+
+
+def test_normal_equations_match_reference():
+    rng = np.random.default_rng(4)
+    config = RegistrationConfig()
+    local_map = LocalMap()
+    pose0 = se2_to_pose(4.0, 0.05, 0.03)
+    scan0 = make_scan(corridor(), (4.0, 0.05, 0.03), rng)
+    local_map.insert(prepare_source(scan0.points, config).cloud @ pose0[:3, :3].T
+                     + pose0[:3, 3], 1)
+    scan = make_scan(corridor(), (4.3, 0.0, 0.0), rng)
+    source = prepare_source(scan.points, config, scan.range_sigma)
+    n = len(local_map)
+    cells = np.array([key_coords(k) for k in local_map.voxel_keys[:n]])
+    for pose, threshold in ((se2_to_pose(4.32, 0.01, 0.01), 0.08), (se2_to_pose(4.2, 0, 0), 0.2)):
+        ours = evaluate(source, local_map, pose, threshold, config)
+        rings = 1 if threshold <= local_map.voxel_size else 2
+        theirs = reference.normal_equations(
+            source.points, source.normals, source.variance, pose, cells, local_map.means[:n],
+            local_map.line_normals[:n], local_map.line_var[:n],
+            (local_map.flags[:n] & LINE) > 0, 0.1, rings, 1, threshold, threshold / 3,
+            config.sigma_floor ** 2, np.cos(config.max_normal_angle))
+        assert ours[2][0] == theirs[2][0] > 100  # the same inliers
+        for a, b in zip(ours, theirs, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
+
+
+@pytest.mark.parametrize("shifts", [0, 3])
+def test_shift_scores_match_reference(shifts):
+    rng = np.random.default_rng(5)
+    grid = rng.uniform(0, 1, (30, 25))
+    cells = rng.integers(-2, 32, (50, 2))
+    np.testing.assert_allclose(_shift_scores(grid, cells, shifts),
+                               reference.shift_scores(grid, cells, shifts), atol=1e-12)
