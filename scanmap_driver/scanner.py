@@ -30,7 +30,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
@@ -46,6 +46,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+T = TypeVar("T")
 HeadingDecoder = Callable[[Frame], "float | None"]
 Odometry = Callable[[float], np.ndarray]
 
@@ -161,55 +162,90 @@ class Progress:
     elapsed: float
 
 
-# -- the grabber ---------------------------------------------------------------------------
+# -- hand-over between threads -------------------------------------------------------------
+
+class DropOldestQueue(Generic[T]):
+    """A bounded hand-over from a producer thread that never waits: when it is full, the
+    oldest item is dropped (counted in `dropped`). The producer's error is handed to the
+    consumer once the items before it are taken."""
+
+    def __init__(self, capacity: int) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity: expected >= 1, got {capacity}")
+        self.capacity = capacity
+        self.dropped = 0
+        self.added = 0
+        self._items: collections.deque[T] = collections.deque()
+        self._ready = threading.Condition()
+        self._error: BaseException | None = None
+
+    def put(self, item: T) -> None:
+        """Add an item, dropping the oldest when full."""
+        with self._ready:
+            if len(self._items) >= self.capacity:
+                self._items.popleft()
+                self.dropped += 1
+            self._items.append(item)
+            self.added += 1
+            self._ready.notify_all()
+
+    def fail(self, error: BaseException) -> None:
+        """The producer ended with `error`."""
+        with self._ready:
+            self._error = error
+            self._ready.notify_all()
+
+    def get(self, timeout: float) -> T | None:
+        """The oldest item; None after `timeout` s; raises the producer's error when drained."""
+        with self._ready:
+            if not self._ready.wait_for(lambda: self._items or self._error, timeout):
+                return None
+            if self._items:
+                return self._items.popleft()
+            raise self._error  # type: ignore[misc]
+
+    def clear(self) -> None:
+        """Drop every queued item (not counted)."""
+        with self._ready:
+            self._items.clear()
+
 
 class FrameGrabber:
-    """Reads a camera in its own thread into a bounded buffer that drops its oldest frames.
-
-    The camera is never blocked by the consumer; frames dropped for lack of room are
-    counted in `overflow`. A camera error is handed to the consumer by `get`.
+    """Reads a camera in its own thread into a `DropOldestQueue`, so the camera is never
+    blocked by the consumer; frames dropped for lack of room are counted in `overflow`.
+    A camera error reaches the consumer through `get` as a DeviceError.
     """
 
     def __init__(self, camera: Camera, capacity: int = 100) -> None:
         self.camera = camera
-        self.overflow = 0
-        self._frames: collections.deque[Frame] = collections.deque()
-        self._capacity = capacity
-        self._ready = threading.Condition()
-        self._error: BaseException | None = None
+        self._frames: DropOldestQueue[Frame] = DropOldestQueue(capacity)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="frame-grabber", daemon=True)
         self._thread.start()
 
+    @property
+    def overflow(self) -> int:
+        """Frames dropped because the consumer fell behind."""
+        return self._frames.dropped
+
     def _run(self) -> None:
         while not self._stop.is_set():
             try:
-                frame = self.camera.read()
+                self._frames.put(self.camera.read())
             except BaseException as exc:  # handed to the consumer
-                with self._ready:
-                    self._error = exc
-                    self._ready.notify_all()
+                self._frames.fail(exc)
                 return
-            with self._ready:
-                if len(self._frames) >= self._capacity:
-                    self._frames.popleft()
-                    self.overflow += 1
-                self._frames.append(frame)
-                self._ready.notify_all()
 
     def get(self, timeout: float) -> Frame | None:
-        """The oldest buffered frame; None after `timeout` s; the camera's error if it failed."""
-        with self._ready:
-            if not self._ready.wait_for(lambda: self._frames or self._error, timeout):
-                return None
-            if self._frames:
-                return self._frames.popleft()
-            raise DeviceError(f"camera failed: {self._error}") from self._error
+        """The oldest buffered frame; None after `timeout` s; DeviceError if the camera failed."""
+        try:
+            return self._frames.get(timeout)
+        except Exception as exc:
+            raise DeviceError(f"camera failed: {exc}") from exc
 
     def discard(self) -> None:
         """Drop the buffered frames (taken before the current scan began)."""
-        with self._ready:
-            self._frames.clear()
+        self._frames.clear()
 
     def stop(self) -> None:
         """Stop reading (the thread ends after the camera's current read)."""
@@ -586,18 +622,21 @@ class ContinuousScanning:
     """
 
     def __init__(self, scanner: Scanner, capacity: int = 2) -> None:
-        if capacity < 1:
-            raise ValueError(f"capacity: expected >= 1, got {capacity}")
         self.scanner = scanner
-        self.capacity = capacity
-        self.dropped_scans = 0
-        self.scans_taken = 0
-        self._queue: collections.deque[ScanResult] = collections.deque()
-        self._ready = threading.Condition()
-        self._error: BaseException | None = None
+        self._scans: DropOldestQueue[ScanResult] = DropOldestQueue(capacity)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="continuous-scanning",
                                         daemon=True)
+
+    @property
+    def dropped_scans(self) -> int:
+        """Scans dropped because the consumer fell behind."""
+        return self._scans.dropped
+
+    @property
+    def scans_taken(self) -> int:
+        """Scans completed so far."""
+        return self._scans.added
 
     def __enter__(self) -> ContinuousScanning:
         self.start()
@@ -613,30 +652,16 @@ class ContinuousScanning:
     def _run(self) -> None:
         try:
             while not self._stop.is_set():
-                result = self.scanner.scan(keep_running=True, cancel=self._stop)
-                with self._ready:
-                    if len(self._queue) >= self.capacity:
-                        self._queue.popleft()
-                        self.dropped_scans += 1
-                    self._queue.append(result)
-                    self.scans_taken += 1
-                    self._ready.notify_all()
+                self._scans.put(self.scanner.scan(keep_running=True, cancel=self._stop))
         except BaseException as exc:  # handed to the consumer
             if not (isinstance(exc, ScanFailed) and exc.reason == "cancelled"):
-                with self._ready:
-                    self._error = exc
-                    self._ready.notify_all()
+                self._scans.fail(exc)
         finally:
             self.scanner.motor.stop_safely()
 
     def get(self, timeout: float) -> ScanResult | None:
         """The oldest queued scan; None after `timeout` s; the thread's fault once drained."""
-        with self._ready:
-            if not self._ready.wait_for(lambda: self._queue or self._error, timeout):
-                return None
-            if self._queue:
-                return self._queue.popleft()
-            raise self._error  # type: ignore[misc]
+        return self._scans.get(timeout)
 
     def __iter__(self) -> Iterator[ScanResult]:
         """Scans until a fault (raised) or stop()."""

@@ -86,7 +86,7 @@ class SimulatedFirmware:
     def __init__(self, motor: MotorParameters | None = None, *, start_angle: float = 0.0,
                  seed: int = 0, tick: float = 0.003, protocol: int = PROTOCOL_VERSION,
                  device_name: str = DEVICE_NAME, firmware: str = "1.0.0-sim",
-                 reset_on_open: bool = True, boot_time: float = 0.2,
+                 reset_on_open: bool = True, boot_time: float = 0.3,
                  history_capacity: int = 1 << 16) -> None:
         self.motor = DcMotor(motor or MotorParameters(), np.random.default_rng(seed),
                              start_angle)
@@ -172,6 +172,16 @@ class SimulatedFirmware:
         """Head angular speed (rad/s, CCW positive) at the last firmware tick."""
         with self._lock:
             return self.motor.speed
+
+    @property
+    def booting(self) -> bool:
+        """True while the controller is booting (deaf) after a reset."""
+        return bool(self._booting_until)
+
+    @property
+    def host_connected(self) -> bool:
+        """True while a host has the port open (as far as the firmware noticed)."""
+        return self._host_present
 
     @property
     def driven(self) -> bool:

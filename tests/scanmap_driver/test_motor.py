@@ -25,14 +25,7 @@ from scanmap_driver.motor import (
 )
 from scanmap_driver.sim.firmware import SimulatedFirmware
 
-
-def wait_until(predicate, timeout: float = 3.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return predicate()
+from .polling import wait_until
 
 
 @pytest.fixture

@@ -22,6 +22,7 @@ import pytest
 from scanmap_driver.motor import MotorController
 from scanmap_driver.sim.firmware import SimulatedFirmware
 
+from .polling import wait_until
 from .serial_terminal import Terminal, xor_checksum
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -100,15 +101,6 @@ def terminal(device):
     term = Terminal(device.port)
     yield term
     term.close()
-
-
-def wait_until(predicate, timeout: float = 3.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return predicate()
 
 
 # -- conformance: both implementations -------------------------------------------------------

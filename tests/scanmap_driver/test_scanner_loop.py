@@ -33,6 +33,7 @@ from scanmap_driver.scanner import (
 )
 from scanmap_driver.sim.motor_model import MotorParameters
 
+from .polling import wait_until
 from .sim_rig import WALL_HEIGHTS, WALL_RADIUS, rig
 
 FAST = MotorParameters(full_speed=2.0 * math.pi * 1.6)  # about 0.9 s per revolution
@@ -41,15 +42,6 @@ TURN = 2.0 * math.pi + math.radians(10.0)
 
 def wrapped(a):
     return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def wait_until(predicate, timeout: float = 3.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return predicate()
 
 
 def later(delay: float, action) -> threading.Timer:

@@ -15,6 +15,7 @@ import serial
 
 from scanmap_driver.sim.firmware import SimulatedFirmware
 
+from .polling import wait_until
 from .serial_terminal import Terminal
 
 
@@ -27,7 +28,8 @@ def firmware():
 @pytest.fixture
 def terminal(firmware):
     term = Terminal(firmware.port)  # opening the port resets the controller, which boots
-    assert term.wait_event("! BOOT scanmap-motor proto=1 ")
+    assert wait_until(lambda: firmware.host_connected and not firmware.booting)
+    term.link.reset_input_buffer()  # its BOOT announcement (tested below)
     yield term
     term.close()
 
@@ -40,7 +42,7 @@ def test_opening_the_port_resets_the_controller_like_an_uno(firmware):
     assert term.ask("HELLO").startswith("OK HELLO")
     term.ask("RUN CCW 500")
     term.close()
-    time.sleep(0.1)  # a reopen within one firmware tick would go unnoticed
+    assert wait_until(lambda: not firmware.host_connected)  # (a quick reopen would not be)
     term = Terminal(firmware.port)
     assert term.wait_event("! BOOT")
     assert firmware.state == "STOP" and term.ask("STATUS").startswith("OK STATUS state=STOP")
@@ -131,9 +133,11 @@ def test_driver_fault_and_reset_are_announced(terminal, firmware):
     assert terminal.ask("STATUS").split()[2:7] == [
         "state=STOP", "dir=CCW", "speed=0", "target=0", "faults=DRIVER"]
     assert "! FAULT DRIVER" in terminal.events
+    terminal.events.clear()
     firmware.reset()
-    assert terminal.ask("STATUS").startswith("OK STATUS state=STOP")
-    assert sum(e.startswith("! BOOT") for e in terminal.events) == 2
+    status = terminal.ask("STATUS")
+    assert status.startswith("OK STATUS state=STOP") and "faults=NONE" in status
+    assert terminal.events == ["! BOOT scanmap-motor proto=1 fw=1.0.0-sim drive=dc"]
 
 
 def test_injected_garbage_and_fragments_reach_the_host(terminal, firmware):
