@@ -80,6 +80,20 @@ class RegistrationConfig:
     max_rotation: float = 0.8
     restart_after: int = 3
 
+    @classmethod
+    def for_2d_scans(cls, max_range: float = 12.0, **changes: float | bool) -> RegistrationConfig:
+        """Settings for a 2-D laser scanner (e.g. CARMEN logs: 180 beams at one height).
+
+        Walls are lines of the single scan plane (`scans_2d`); a scan has ~150 usable
+        points, so one well-aligned point already counts (min_constraint 1) and a scan
+        sees much the map has not (min_fitness 0.1); ranges to `max_range` and a map as
+        wide; coarser map voxels (0.15 m) so sparse far beams still make lines.
+        """
+        settings = {"scans_2d": True, "min_range": 0.1, "max_range": max_range,
+                    "floor_band": 0.0, "map_voxel_size": 0.15, "map_radius": max_range,
+                    "min_constraint": 1.0, "min_fitness": 0.1, "max_threshold": 0.5}
+        return cls(**{**settings, **changes})
+
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)

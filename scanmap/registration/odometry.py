@@ -87,7 +87,7 @@ class ScanOdometry:
         """Register (N, 3) base_link points taken at `stamp` with wheel `odometry` (4x4).
 
         times (N,) and scan_motion (base_link at the last point's time in base_link at the
-        first's) de-skew; without scan_motion a constant-velocity estimate is used.
+        first's, from odometry) de-skew; without odometry the scan is taken as static.
         """
         stamp = float(len(self.stamps)) if stamp is None else float(stamp)
         if odometry is not None:
@@ -96,8 +96,6 @@ class ScanOdometry:
                 raise RegistrationError(f"odometry: expected a finite 4x4 pose, got shape "
                                         f"{odometry.shape}")
         prior = self._predict(stamp, odometry)
-        if times is not None and scan_motion is None:
-            scan_motion = self._velocity_motion(times)
         source = prepare_source(points, self.config, range_sigma, times, scan_motion)
         if not self._local:
             self.origin = self._snap(self.initial_pose[:3, 3])
@@ -142,18 +140,6 @@ class ScanOdometry:
         if self.config.planar:
             step = se2_to_pose(*pose_to_se2(step))
         return Prior(last @ step, covariance)
-
-    def _velocity_motion(self, times: np.ndarray) -> np.ndarray | None:
-        """Constant-velocity motion over the scan's duration, from the last two poses."""
-        if len(self._local) < 2 or self.stamps[-1] <= self.stamps[-2]:
-            return None
-        finite = np.asarray(times, dtype=np.float64)
-        finite = finite[np.isfinite(finite)]
-        if finite.size == 0:
-            return None
-        step = invert_pose(self._local[-2]) @ self._local[-1]
-        duration = float(finite.max() - finite.min())
-        return _scaled_motion(step, duration / (self.stamps[-1] - self.stamps[-2]))
 
     def _accept(self, result: RegistrationResult, prior: Prior, source: Source,
                 stamp: float, odometry: np.ndarray | None) -> None:
