@@ -189,9 +189,9 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
 
     A cell without anything in its band is FREE when rays saw at least `coverage[0]` of
     the band's height bins free (`coverage[1]` where no floor was seen in or next to
-    the cell: under or inside objects), and none of its unseen bins is at a height where a
-    cell within two cells holds an obstacle (a table top never hit from above in some
-    cells stays UNKNOWN there rather than free).
+    the cell: under or inside objects), and none of its unseen bins is within two bins
+    of a height where a cell within two cells holds an obstacle (a table top never hit
+    from above in some cells stays UNKNOWN there rather than free).
     """
     ny, nx = nlev.shape
     occupied = np.zeros((ny, nx), np.uint64)  # band heights held by obstacles, per cell
@@ -239,6 +239,9 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
             for yy in range(max(y - 2, 0), min(y + 3, ny)):
                 for xx in range(max(x - 2, 0), min(x + 3, nx)):
                     suspect |= occupied[yy, xx]
+            # A surface seen as hits has a thickness nobody measured: widen by two bins.
+            suspect |= (suspect << np.uint64(1)) | (suspect >> np.uint64(1))
+            suspect |= (suspect << np.uint64(1)) | (suspect >> np.uint64(1))
             if unseen & suspect == 0:
                 state[y, x] = FREE
 

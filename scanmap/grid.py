@@ -57,13 +57,13 @@ class GridConfig:
     z_min: float = -0.35
     mask_dz: float = 0.025
     merge_gap: float = 0.10
-    clear_margin: float = 0.15
-    protect: float = 0.25
+    clear_margin: float = 0.1
+    protect: float = 0.05
     max_range: float = 20.0
     l_hit: float = 0.85
     l_miss: float = 0.4
     l_max: float = 3.5
-    max_misses: int = 3
+    max_misses: int = 5
     bundle_run: int = 8
 
     def __post_init__(self) -> None:
@@ -328,7 +328,7 @@ class HeightGrid:
                     break
             self._scan_times.append(float(stamp))
             ip = np.array([self._shift, c.levels, c.max_misses, len(self._scan_times) - 1,
-                           self._ray_key, c.bundle_run or -1], np.int64)
+                           self._ray_key, c.bundle_run], np.int64)
             hits, cleared, self._ray_key = gk.insert_scan(points, origins, cls,
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)

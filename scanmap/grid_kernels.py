@@ -11,9 +11,9 @@ Insertion is one scan at a time, in three passes:
 2. Rays, traced from the hit back to the sensor origin, cell by cell (Amanatides-Woo in
    x, y). In each cell the ray spans heights [za, zb]; it marks them seen free (the
    cell's observed mask), and it clears (subtracts `l_miss` from) a level only if it
-   passed through it: the span contains the level's middle or lies inside the level
-   (then the level is split around the span, and both parts take the miss: it wrongly
-   spanned free space). A ray under a table top or over a low box leaves them alone. Guards
+   passed through it: the span contains the level's middle or lies inside the level.
+   A ray under a table top or over a low box leaves them alone. A level hit in this scan
+   elsewhere and crossed inside is split around the ray instead (see _pass_cell). Guards
    against eroding surfaces at grazing incidence: the last `clear_margin` metres
    before the hit clear nothing; a level hit in this scan within `protect` metres of
    the ray's heights is not cleared ("occupied wins", as in OctoMap, but per height, so
@@ -24,8 +24,8 @@ Insertion is one scan at a time, in three passes:
    the cell remembers the heights the current origin's rays marked (VKEY, VMASK), and a
    ray stops after `bundle_run` cells in a row that a sibling ray already updated with
    the same heights (as Voxblox's "fast" integrator does) instead of repeating them.
-3. Consolidation: in each cell where a hit started a level, neighbouring levels merge
-   unless a ray was seen passing between them: a cell holds one surface until
+3. Consolidation: a level a hit started merges with its neighbours unless a ray was
+   seen passing between them: a cell holds one surface until
    observations show more.
 
 Log-odds are clamped at `l_max`, so an object seen for thousands of scans still clears
@@ -259,6 +259,7 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
                 best = d
                 k = m
     li = base + k
+    grew = fresh or z < lev_f[li, LO] or z > lev_f[li, HI]
     lev_f[li, LO] = min(lev_f[li, LO], z)
     lev_f[li, HI] = max(lev_f[li, HI], z)
     hits = min(float(lev_n[li, HITS]) + 1.0, 4294967295.0)
@@ -275,29 +276,46 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
     else:
         lev_f[li, SLO] = min(lev_f[li, SLO], z)
         lev_f[li, SHI] = max(lev_f[li, SHI], z)
-    while k + 1 < np.int64(nlev[off]) and lev_f[base + k + 1, LO] - gap <= lev_f[base + k, HI]:
+    # Only growth merges: the gap a ray opened by splitting a level stays open.
+    while grew and k + 1 < np.int64(nlev[off]) \
+            and lev_f[base + k + 1, LO] - gap <= lev_f[base + k, HI]:
         _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels)
-    while k > 0 and lev_f[base + k - 1, HI] + gap >= lev_f[base + k, LO]:
+    while grew and k > 0 and lev_f[base + k - 1, HI] + gap >= lev_f[base + k, LO]:
         _merge_down(lev_f, lev_n, lev_flag, nlev, off, k - 1, levels)
         k -= 1
     return fresh
 
 
 @njit(cache=True, nogil=True)
-def _consolidate(lev_f, lev_n, lev_flag, nlev, off, free_mask, z_min, dz, levels) -> None:
-    """Merge neighbouring levels of cell off unless a ray was seen passing between them.
+def _closed_gap(lev_f, base, k, free_mask, z_min, dz) -> bool:
+    """No height bin strictly between levels k and k+1 has been seen free."""
+    b0 = int(np.floor((lev_f[base + k, HI] - z_min) / dz)) + 1
+    b1 = int(np.floor((lev_f[base + k + 1, LO] - z_min) / dz)) - 1
+    if b1 < b0:
+        return True
+    gap = height_mask(z_min + (b0 + 0.5) * dz, z_min + (b1 + 0.5) * dz, z_min, dz)
+    return free_mask & gap == 0
+
+
+@njit(cache=True, nogil=True)
+def _consolidate(lev_f, lev_n, lev_flag, nlev, off, z, free_mask, z_min, dz, levels) -> None:
+    """Merge the level holding height z with its neighbours unless a ray was seen passing
+    between them.
 
     A cell holds one surface until observations show more: sparse hits up a wall face
     become one level, while the floor and a table top, with rays seen passing between
-    them (at least one height bin of the gap seen free), stay two.
+    them (a height bin strictly between them seen free), stay two.
     """
     base = off * levels
-    for k in range(np.int64(nlev[off]) - 2, -1, -1):
-        b0 = int(np.floor((lev_f[base + k, HI] - z_min) / dz)) + 1
-        b1 = int(np.floor((lev_f[base + k + 1, LO] - z_min) / dz)) - 1
-        gap = height_mask(z_min + (b0 + 0.5) * dz, z_min + (b1 + 0.5) * dz, z_min, dz)
-        if b1 < b0 or free_mask & gap == 0:
-            _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels)
+    k = 0
+    while k < np.int64(nlev[off]) and lev_f[base + k, HI] < z:
+        k += 1
+    if k == np.int64(nlev[off]):
+        return
+    if k + 1 < np.int64(nlev[off]) and _closed_gap(lev_f, base, k, free_mask, z_min, dz):
+        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels)
+    if k > 0 and _closed_gap(lev_f, base, k - 1, free_mask, z_min, dz):
+        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k - 1, levels)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -335,17 +353,39 @@ def _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss) -> int:
 
 
 @njit(cache=True, nogil=True)
+def _split(lev_f, lev_n, lev_flag, nlev, off, k, za, zb, levels) -> None:
+    """Split level k of cell off around the free span [za, zb] into two levels."""
+    base = off * levels
+    li = base + k
+    for j in range(base + np.int64(nlev[off]), li + 1, -1):
+        lev_f[j] = lev_f[j - 1]
+        lev_n[j] = lev_n[j - 1]
+        lev_flag[j] = lev_flag[j - 1]
+    lev_f[li + 1] = lev_f[li]
+    lev_n[li + 1] = lev_n[li]
+    lev_flag[li + 1] = lev_flag[li]
+    lev_f[li, HI] = za
+    lev_f[li, SHI] = min(lev_f[li, SHI], za)
+    lev_f[li + 1, LO] = zb
+    lev_f[li + 1, SLO] = max(lev_f[li + 1, SLO], zb)
+    nlev[off] += 1
+
+
+@njit(cache=True, nogil=True)
 def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, fp, levels, max_miss, scan) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
-    A pass strictly inside a level splits it there (the level wrongly spanned free
-    space: a merged floor and table top, or a person being walked through), and both
-    parts take the miss. Returns the number of levels removed.
+    A level not hit in this scan takes a miss. A level hit in this scan, but not within
+    `protect` of these heights, and crossed strictly inside, wrongly spans free space (a
+    floor merged with a table top before the gap was seen; the floor where a person
+    stood): it is split around the span, and the part without this scan's hits takes the
+    miss, or is cut off when thinner than two height bins. Returns the levels removed.
     """
     cleared = 0
     base = off * levels
     protect = fp[FP_PROTECT]
     split_margin = 0.5 * fp[FP_MASK_DZ]
+    min_part = 2.0 * fp[FP_MASK_DZ]
     for k in range(np.int64(nlev[off]) - 1, -1, -1):
         li = base + k
         lo, hi = lev_f[li, LO], lev_f[li, HI]
@@ -353,23 +393,26 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, fp, levels, max_miss, 
             continue
         lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
         _touch(lev_n, lev_flag, li, scan)
-        if lev_flag[li] & HIT_FLAG and zb >= lev_f[li, SLO] - protect \
-                and za <= lev_f[li, SHI] + protect:
+        if not lev_flag[li] & HIT_FLAG:
+            cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
+            continue
+        if zb >= lev_f[li, SLO] - protect and za <= lev_f[li, SHI] + protect:
             continue  # hit near these heights in this scan: occupied wins
-        n = np.int64(nlev[off])
-        if n < levels and lo + split_margin < za and zb + split_margin < hi:
-            for j in range(base + n, li + 1, -1):
-                lev_f[j] = lev_f[j - 1]
-                lev_n[j] = lev_n[j - 1]
-                lev_flag[j] = lev_flag[j - 1]
-            lev_f[li + 1] = lev_f[li]
-            lev_n[li + 1] = lev_n[li]
-            lev_flag[li + 1] = lev_flag[li]
-            lev_f[li, HI] = za
-            lev_f[li + 1, LO] = zb
-            nlev[off] = n + 1
-            cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k + 1, fp, levels, max_miss)
-        cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
+        hits_below, hits_above = lev_f[li, SLO] <= za, lev_f[li, SHI] >= zb
+        inside = lo + split_margin < za and zb + split_margin < hi
+        if not hits_above and hi - zb < min_part:
+            lev_f[li, HI] = max(za, lev_f[li, SHI])  # cut off the unsupported top
+        elif not hits_below and za - lo < min_part:
+            lev_f[li, LO] = min(zb, lev_f[li, SLO])
+        elif inside and np.int64(nlev[off]) < levels:
+            _split(lev_f, lev_n, lev_flag, nlev, off, k, za, zb, levels)
+            if not hits_above:
+                cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k + 1, fp, levels,
+                                 max_miss)
+            if not hits_below:
+                cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
+        else:
+            cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
     return cleared
 
 
@@ -388,6 +431,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
     scan64 = np.uint64(ip[IP_SCAN])
     n_hits = 0
     fresh = np.empty(points.shape[0], np.int64)  # cells where a hit started a level
+    fresh_z = np.empty(points.shape[0], np.float64)  # and the height it started at
     n_fresh = 0
     for i in range(points.shape[0]):  # pass 1: hits
         if cls[i] != POINT_OK:
@@ -400,6 +444,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
         if _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, (gx - ix - 0.5) * res,
                     (gy - iy - 0.5) * res, fp, levels, scan):
             fresh[n_fresh] = off
+            fresh_z[n_fresh] = z
             n_fresh += 1
         cells[off, SCAN] = scan64
         n_hits += 1
@@ -433,7 +478,8 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                 off = tile_base | ((iy & mask) << shift) | (ix & mask)
                 za, zb = pz + dzr * t_in, pz + dzr * t_out
                 bits = height_mask(min(za, zb), max(za, zb), z_min, mdz)
-                if cells[off, VKEY] == key and cells[off, VMASK] & bits == bits:
+                if bundle_run > 0 and cells[off, VKEY] == key \
+                        and cells[off, VMASK] & bits == bits:
                     run += 1  # a ray of the same origin already did this cell's update
                     if run == bundle_run:
                         break
@@ -461,7 +507,8 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                 tmy += tdy
     for i in range(n_fresh):  # pass 3: merge new levels unless their gap was seen free
         off = fresh[i]
-        _consolidate(lev_f, lev_n, lev_flag, nlev, off, cells[off, SEEN], z_min, mdz, levels)
+        _consolidate(lev_f, lev_n, lev_flag, nlev, off, fresh_z[i], cells[off, SEEN], z_min,
+                     mdz, levels)
     return n_hits, n_cleared, np.int64(key)
 
 

@@ -29,10 +29,22 @@ def scan_rays(scan: Scan, model: ScannerModel,
               pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Points (N, 3) and ray origins (N, 3) of `scan` in map, float64.
 
-    pose: 4x4 map <- base_link (identity when None).
+    pose: 4x4 map <- base_link (identity when None), or (F, 4, 4) one per frame, indexed
+    by the scan's frame_index (a robot moving during the scan).
     """
     pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
-    if pose.shape != (4, 4) or not np.isfinite(pose).all():
-        raise ScanError(f"scan_rays: pose must be a finite 4x4 matrix, got shape {pose.shape}")
-    return (transform_points(pose, scan.points),
-            transform_points(pose, camera_centres(model, scan.heading)))
+    if pose.shape[-2:] != (4, 4) or pose.ndim not in (2, 3) or not np.isfinite(pose).all():
+        raise ScanError(f"scan_rays: pose must be a finite 4x4 or (F, 4, 4) array, got shape "
+                        f"{pose.shape}")
+    centres = camera_centres(model, scan.heading)
+    if pose.ndim == 2:
+        return transform_points(pose, scan.points), transform_points(pose, centres)
+    frames = scan.frame_index
+    if len(frames) and not (0 <= frames.min() and frames.max() < len(pose)):
+        raise ScanError(f"scan_rays: frame_index spans {frames.min()}..{frames.max()} but "
+                        f"{len(pose)} frame poses were given")
+    per_point = pose[frames]
+    rotate = per_point[:, :3, :3]
+    shift = per_point[:, :3, 3]
+    return (np.einsum("nij,nj->ni", rotate, scan.points.astype(np.float64)) + shift,
+            np.einsum("nij,nj->ni", rotate, centres) + shift)

@@ -182,3 +182,35 @@ def furnished_room() -> Scene:
     shelf = (cell_box(-40, -30, -20, -24, 0.85, 0.88),)
     return room(table + low_box + sill + shelf)
 
+
+
+@dataclass
+class MappedScene:
+    """A grid filled with ideal scans of a scene, with the hits and their surface labels."""
+
+    grid: object
+    points: np.ndarray
+    labels: np.ndarray
+
+
+def map_scene(scene: Scene, poses: list[tuple[float, float, float]], grid, *, seed: int = 0,
+              first_stamp: float = 0.0, frames: int = 50, rays: int = 400) -> MappedScene:
+    """Insert one ideal scan per pose into `grid` (stamps first_stamp, +1, ...)."""
+    from scanmap.rays import scan_rays
+
+    model = reference_scanner()
+    points, labels = [], []
+    for i, pose in enumerate(poses):
+        stamp = first_stamp + i
+        scan, label = scan_scene(scene, pose, seed=seed + i, stamp=stamp, frames=frames,
+                                 rays=rays, model=model)
+        pts, origins = scan_rays(scan, model, se2_to_pose(*pose))
+        grid.insert(pts, origins, stamp)
+        points.append(pts)
+        labels.append(label)
+    return MappedScene(grid, np.vstack(points), np.concatenate(labels))
+
+
+ROOM_POSES = [(0.0, 0.0, 0.0), (1.5, 1.5, 0.3), (-1.5, 1.5, 0.6), (-1.5, -1.5, 0.9),
+              (1.5, -1.5, 1.2), (0.0, 2.2, 1.5), (2.2, 0.0, 1.8), (-2.2, 0.0, 2.1),
+              (0.0, -2.2, 2.4), (1.0, -0.3, 2.7)]

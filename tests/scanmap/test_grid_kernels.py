@@ -1,0 +1,220 @@
+"""The grid kernels against plain-numpy references: masks, ray traversal, levels, clearing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from scanmap import grid_kernels as gk
+from scanmap.grid import GridConfig, HeightGrid
+
+CONFIG = GridConfig(extent=20.0, bundle_run=0)
+
+
+def reference_mask(za: float, zb: float, z_min: float, dz: float) -> int:
+    """Bits b0..b1 of the bins holding za and zb, clipped to 0..63."""
+    b0, b1 = (min(max(int(np.floor((z - z_min) / dz)), 0), 63) for z in (za, zb))
+    return sum(1 << b for b in range(b0, b1 + 1))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-3, 4), st.floats(0, 2), st.floats(-1, 0.5), st.sampled_from([0.025, 0.05]))
+def test_height_mask_matches_reference(za, span, z_min, dz):
+    assert int(gk.height_mask(za, za + span, z_min, dz)) == reference_mask(za, za + span,
+                                                                           z_min, dz)
+
+
+def test_classify_points_matches_numpy():
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-12, 12, (500, 3))
+    origins = rng.uniform(-12, 12, (500, 3))
+    points[::17, 1] = np.nan
+    origins[::23, 2] = np.inf
+    bounds = np.array([-10.0, -10.0, 10.0, 10.0])
+    window = np.array([-5.0, -6.0, 5.0, 6.0])
+    cls = gk.classify_points(points, origins, bounds, window, 8.0)
+
+    def inside(box, p):
+        return (box[0] <= p[:, 0]) & (p[:, 0] < box[2]) & (box[1] <= p[:, 1]) & (p[:, 1] < box[3])
+
+    finite = np.isfinite(points).all(1) & np.isfinite(origins).all(1)
+    in_bounds = inside(bounds, points) & inside(bounds, origins)
+    in_window = inside(window, points) & inside(window, origins)
+    near = np.linalg.norm(points - origins, axis=1) <= 8.0
+    expected = np.select([~finite, ~in_bounds, ~in_window, ~near],
+                         [gk.POINT_NONFINITE, gk.POINT_OUTSIDE_EXTENT, gk.POINT_OUTSIDE_WINDOW,
+                          gk.POINT_TOO_FAR], gk.POINT_OK)
+    np.testing.assert_array_equal(cls, expected)
+
+
+def reference_ray_cells(origin: np.ndarray, point: np.ndarray, res: float, z_min: float,
+                        dz: float) -> dict[tuple[int, int], int]:
+    """Cells (global ix, iy) a segment crosses with positive length, and its height bits there,
+    by exact clipping of the segment against every cell of its bounding box."""
+    corner = CONFIG.corner
+    d = point - origin
+    lo = np.floor((np.minimum(origin, point)[:2] - corner) / res).astype(int)
+    hi = np.floor((np.maximum(origin, point)[:2] - corner) / res).astype(int)
+    out = {}
+    for ix in range(lo[0], hi[0] + 1):
+        for iy in range(lo[1], hi[1] + 1):
+            t0, t1 = 0.0, 1.0
+            for axis, index in ((0, ix), (1, iy)):
+                a, b = corner + index * res, corner + (index + 1) * res
+                if d[axis] == 0.0:
+                    if not a <= origin[axis] < b:
+                        t0, t1 = 1.0, 0.0
+                    continue
+                ta, tb = sorted(((a - origin[axis]) / d[axis], (b - origin[axis]) / d[axis]))
+                t0, t1 = max(t0, ta), min(t1, tb)
+            if t1 - t0 > 1e-9:
+                za, zb = sorted((origin[2] + d[2] * t0, origin[2] + d[2] * t1))
+                out[(ix, iy)] = reference_mask(za, zb, z_min, dz)
+    return out
+
+
+def grid_seen(grid: HeightGrid) -> dict[tuple[int, int], int]:
+    """Global (ix, iy) -> observed mask of every cell with a non-zero mask."""
+    layers = grid.layers()
+    ys, xs = np.nonzero(layers.seen)
+    c = grid.config
+    ix0 = round((layers.origin[0] - c.corner) / c.resolution)
+    iy0 = round((layers.origin[1] - c.corner) / c.resolution)
+    return {(ix0 + x, iy0 + y): int(layers.seen[y, x]) for y, x in zip(ys, xs, strict=True)}
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_ray_traversal_marks_exactly_the_crossed_cells_and_heights(seed):
+    rng = np.random.default_rng(seed)
+    origin = np.array([*rng.uniform(-2, 2, 2), rng.uniform(0.5, 1.5)])
+    point = origin + np.array([*rng.uniform(-4, 4, 2), rng.uniform(-1.5, 0.3)])
+    grid = HeightGrid(CONFIG)
+    grid.insert(point[None], origin, 0.0)
+    c = grid.config
+    expected = reference_ray_cells(origin, point, c.resolution, c.z_min, c.mask_dz)
+    got = grid_seen(grid)
+    assert got == {cell: bits for cell, bits in expected.items() if bits}
+
+
+def single_linkage(z: np.ndarray, gap: float) -> list[tuple[float, float]]:
+    """Clusters of heights where neighbours (sorted) are within gap."""
+    z = np.sort(z)
+    cuts = np.flatnonzero(np.diff(z) > gap) + 1
+    return [(part.min(), part.max()) for part in np.split(z, cuts)]
+
+
+def test_hits_build_levels_like_the_reference_clustering():
+    """Rows of cells, each hit by horizontal rays from far left at given heights; a first
+    scan of rays passing through the cells at probe heights marks those heights seen free,
+    so gaps with a probe (in a height bin strictly between two clusters) stay open and
+    others close (single linkage, then consolidation)."""
+    config = GridConfig(extent=20.0, bundle_run=0, levels=4)
+    grid = HeightGrid(config)
+    res, gap = config.resolution, config.merge_gap
+    rng = np.random.default_rng(7)
+    rows = []
+    for row in range(12):
+        y = row * 0.5 + 0.0125
+        clusters = np.sort(rng.choice([0.0, 0.3, 0.6, 0.9, 1.2], size=rng.integers(1, 4),
+                                      replace=False))
+        heights = np.concatenate([c + rng.uniform(0, 0.06, 5) for c in clusters])
+        probes = rng.choice([0.15, 0.45, 0.75, 1.05], size=rng.integers(0, 3), replace=False)
+        rows.append((y, heights, probes))
+    x_cell = 2.0 + 0.025  # the test cell's centre
+    passes = [(np.array([x_cell + 1.0, y, z]), np.array([-3.0, y, z]))
+              for y, _, probes in rows for z in probes]
+    if passes:
+        ends, starts = map(np.array, zip(*passes, strict=True))
+        grid.insert(ends, starts, 0.0)
+    hits = np.array([[x_cell + rng.uniform(-0.02, 0.02), y, z] for y, heights, _ in rows
+                     for z in heights])
+    origins = np.column_stack([np.full(len(hits), -3.0), hits[:, 1], hits[:, 2]])
+    grid.insert(hits, origins, 1.0)
+    layers = grid.layers()
+    ix = int(np.floor((x_cell - layers.origin[0]) / res))
+    for y, heights, probes in rows:
+        iy = int(np.floor((y - layers.origin[1]) / res))
+        clusters = single_linkage(heights, gap)
+        merged = [list(clusters[0])]
+        for lo, hi in clusters[1:]:
+            between = [p for p in probes if merged[-1][1] < p < lo]
+            b_lo = int(np.floor((merged[-1][1] - config.z_min) / config.mask_dz)) + 1
+            b_hi = int(np.floor((lo - config.z_min) / config.mask_dz)) - 1
+            seen_bins = {int(np.floor((p - config.z_min) / config.mask_dz)) for p in between}
+            if any(b_lo <= b <= b_hi for b in seen_bins):
+                merged.append([lo, hi])
+            else:
+                merged[-1][1] = hi
+        n = layers.nlev[iy, ix]
+        got = layers.levels[iy, ix, :n, :2]
+        np.testing.assert_allclose(got, np.array(merged), atol=1e-6)
+        assert layers.counts[iy, ix, :n, 0].sum() == len(heights)
+        np.testing.assert_allclose(layers.levels[iy, ix, :n, gk.LOGODDS], config.l_hit)
+
+
+def one_level_grid(lo: float, hi: float) -> tuple[HeightGrid, float]:
+    """A grid whose cell at x = 2.025 holds one level [lo, hi] at full log-odds."""
+    config = GridConfig(extent=20.0, bundle_run=0)
+    grid = HeightGrid(config)
+    hits = np.array([[2.025, 0.025, z] for z in np.arange(lo, hi + 1e-9, 0.02)])
+    for stamp in range(6):
+        grid.insert(hits, hits + [0.0, 0.0, 0.01], float(stamp))  # vertical, no clearing
+    return grid, config.l_max
+
+
+def level_at(grid: HeightGrid, x: float = 2.025, y: float = 0.025) -> np.ndarray:
+    layers = grid.layers()
+    iy = int(np.floor((y - layers.origin[1]) / grid.config.resolution))
+    ix = int(np.floor((x - layers.origin[0]) / grid.config.resolution))
+    return layers.levels[iy, ix, :layers.nlev[iy, ix]]
+
+
+def test_ray_under_a_level_leaves_it_and_a_ray_through_its_middle_clears_it():
+    grid, full = one_level_grid(0.72, 0.76)
+    origin = np.array([0.0, 0.025, 0.70])
+    grid.insert(np.array([[4.0, 0.025, 0.70]]), origin, 10.0)  # under it
+    assert level_at(grid)[0, gk.LOGODDS] == pytest.approx(full)
+    grid.insert(np.array([[4.0, 0.025, 0.74]]), origin + [0, 0, 0.04], 11.0)  # through it
+    assert level_at(grid)[0, gk.LOGODDS] == pytest.approx(full - grid.config.l_miss)
+
+
+def test_ray_through_a_level_not_hit_in_the_scan_takes_a_whole_miss():
+    grid, full = one_level_grid(0.0, 1.0)
+    grid.insert(np.array([[4.0, 0.025, 0.2]]), np.array([0.0, 0.025, 0.2]), 10.0)
+    levels = level_at(grid)
+    assert len(levels) == 1
+    assert levels[0, gk.LOGODDS] == pytest.approx(full - grid.config.l_miss)
+
+
+def test_ray_inside_a_level_hit_elsewhere_in_the_scan_splits_it():
+    """The level was hit near its top in this scan and a ray passes at 0.2: the part below
+    the ray (no hit in this scan) takes the miss, the part above keeps its confidence."""
+    grid, full = one_level_grid(0.0, 1.0)
+    top = np.array([[2.025, 0.025, 0.95]])
+    points = np.vstack([top, [[4.0, 0.025, 0.2]]])
+    origins = np.vstack([top + [0.0, 0.0, 0.01], [[0.0, 0.025, 0.2]]])
+    grid.insert(points, origins, 10.0)
+    levels = level_at(grid)
+    assert len(levels) == 2
+    assert levels[0, gk.HI] == pytest.approx(0.2) and levels[1, gk.LO] == pytest.approx(0.2)
+    assert levels[0, gk.LOGODDS] == pytest.approx(full - grid.config.l_miss)
+    assert levels[1, gk.LOGODDS] == pytest.approx(full)
+
+
+def test_misses_per_scan_are_capped():
+    grid, full = one_level_grid(0.72, 0.76)
+    many = np.array([[4.0, 0.025 + dy, 0.74] for dy in np.linspace(-0.02, 0.02, 10)])
+    grid.insert(many, np.column_stack([np.zeros(10), many[:, 1], many[:, 2]]), 10.0)
+    expected = full - grid.config.max_misses * grid.config.l_miss
+    assert level_at(grid)[0, gk.LOGODDS] == pytest.approx(expected, abs=1e-6)
+
+
+def test_absent_tiles_read_as_empty_and_never_updated():
+    grid = HeightGrid(CONFIG)
+    grid.insert(np.array([[1.0, 1.0, 0.0]]), np.array([1.0, 1.0, 1.0]), 0.0)
+    layers = grid.layers((-8.0, -8.0, 8.0, 8.0))
+    far = (slice(0, 10), slice(0, 10))
+    assert (layers.nlev[far] == 0).all() and (layers.seen[far] == 0).all()
+    assert np.isnan(layers.updated[far]).all()
