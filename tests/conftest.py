@@ -15,3 +15,15 @@ def real_data(relative: str) -> Path:
     if not path.exists():
         pytest.skip(f"real data {path} is absent (it lives in ../shared beside the checkout)")
     return path
+
+
+@pytest.fixture(scope="session")
+def office_recording(tmp_path_factory) -> Path:
+    """One rendered scan of the built-in office (seed 7) with ground truth, made once."""
+    from scanmap_driver import reference_scanner
+    from scanmap_driver.sim import builtin_scene
+    from scanmap_driver.sim.simulate import simulate_recording
+
+    out = tmp_path_factory.mktemp("office_recording")
+    simulate_recording(builtin_scene("office"), out, reference_scanner(), seed=7, scans=1)
+    return out
