@@ -12,8 +12,8 @@ of the nearest floor cell within `fill_radius`.
 Obstacles (DESIGN.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known, nothing occupies the band,
 rays have seen enough of the band free (`min_coverage`; more where the cell's own floor
-was never seen), and no height it has not seen is occupied in a cell within two cells;
-otherwise it is UNKNOWN.
+was never seen), and no height it has not seen is occupied (within two height bins) in
+a neighbouring cell; otherwise it is UNKNOWN.
 """
 
 from __future__ import annotations
@@ -59,8 +59,10 @@ class FloorParams:
     height above it (m) that a floor cell needs.
     plane_tolerance: RANSAC inlier distance (m). max_slope: steepest floor plane (rad).
     min_plane_cells: support of a reported plane. fill_radius: how far (m) a floor height
-    is carried into cells without observed floor. min_coverage: fraction of the robot
-    band's height bins that rays must have seen free for a cell to be FREE (as Nav2's
+    is carried into cells without observed floor. detect: False for data that never see
+    the floor (a 2-D laser: every point at one height), which then rely on the
+    `fallback_floor` of `segment`. min_coverage: fraction of the robot band's height
+    bins that rays must have seen free for a cell to be FREE (as Nav2's
     voxel layer tolerates unknown voxels in a column). This scanner rarely sees every
     bin of a column (rays at 0.7-1 m over a cell 2 m away end beyond 4 m, returning
     nothing), so 1.0 leaves most of a room unknown; below 1 a thin hanging object never
@@ -80,6 +82,7 @@ class FloorParams:
     min_coverage_no_floor: float = 0.9
     ransac_iterations: int = 200
     seed: int = 0
+    detect: bool = True
 
 
 @dataclass(frozen=True)
@@ -190,8 +193,8 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
     A cell without anything in its band is FREE when rays saw at least `coverage[0]` of
     the band's height bins free (`coverage[1]` where no floor was seen in or next to
     the cell: under or inside objects), and none of its unseen bins is within two bins
-    of a height where a cell within two cells holds an obstacle (a table top never hit
-    from above in some cells stays UNKNOWN there rather than free).
+    of a height where a neighbouring cell holds an obstacle (a table top never hit from
+    above in some cells stays UNKNOWN there rather than free).
     """
     ny, nx = nlev.shape
     occupied = np.zeros((ny, nx), np.uint64)  # band heights held by obstacles, per cell
@@ -236,8 +239,8 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
             if _popcount(band & seen[y, x]) < need * _popcount(band):
                 continue
             suspect = np.uint64(0)
-            for yy in range(max(y - 2, 0), min(y + 3, ny)):
-                for xx in range(max(x - 2, 0), min(x + 3, nx)):
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
                     suspect |= occupied[yy, xx]
             # A surface seen as hits has a thickness nobody measured: widen by two bins.
             suspect |= (suspect << np.uint64(1)) | (suspect >> np.uint64(1))
@@ -319,7 +322,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     cand_points = np.column_stack([xs[gx], ys[gy], cand[gy, gx]])
     is_floor = np.zeros((ny, nx), bool)
     planes: tuple[FloorPlane, ...] = ()
-    dominant = ransac_plane(cand_points, params, rng)
+    dominant = ransac_plane(cand_points, params, rng) if params.detect else None
     if dominant is not None and dominant[2].sum() >= params.min_plane_cells:
         seeds = np.zeros((ny, nx), bool)
         seeds[gy[dominant[2]], gx[dominant[2]]] = True

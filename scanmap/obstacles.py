@@ -221,12 +221,14 @@ def _segment_distance(px, py, ax, ay, bx, by):
 
 @njit(cache=True, nogil=True)
 def polygon_margin(polygon, radius, state, points, geo):
-    """Least signed distance (negative inside) from the polygon (K, 2) in map to a blocked
-    point within `radius` of it, or to the window's edge (unknown beyond); and its kind."""
+    """Least signed distance (negative inside) from the polygon (K, 2) in map to what is
+    not known free within `radius` of it: obstacle points, unknown cells (their square,
+    bounded by its circumcircle) and the window's edge; and the kind of that thing."""
     ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
     xmin, xmax = polygon[:, 0].min() - radius, polygon[:, 0].max() + radius
     ymin, ymax = polygon[:, 1].min() - radius, polygon[:, 1].max() + radius
     best, kind = radius, FREE
+    half_diag = res * math.sqrt(0.5)
     k = polygon.shape[0]
     for i in range(k):  # the edge is nearest at a vertex
         px, py = polygon[i, 0], polygon[i, 1]
@@ -237,8 +239,10 @@ def polygon_margin(polygon, radius, state, points, geo):
         for x in range(max(int((xmin - ox) / res), 0), min(int((xmax - ox) / res) + 1, nx)):
             if state[y, x] == FREE:
                 continue
-            cx, cy = ox + (x + 0.5) * res, oy + (y + 0.5) * res
-            px, py = _cell_point(y * nx + x, cx, cy, state, points, geo)
+            if state[y, x] == OBSTACLE:
+                px, py, reach = float(points[y, x, 0]), float(points[y, x, 1]), 0.0
+            else:  # unknown: its square, bounded by the circle around it
+                px, py, reach = ox + (x + 0.5) * res, oy + (y + 0.5) * res, half_diag
             d = np.inf
             inside = False
             for i in range(k):
@@ -247,8 +251,7 @@ def polygon_margin(polygon, radius, state, points, geo):
                 d = min(d, _segment_distance(px, py, ax, ay, bx, by))
                 if (ay > py) != (by > py) and px < ax + (py - ay) * (bx - ax) / (by - ay):
                     inside = not inside
-            if inside:
-                d = -d
+            d = -d - reach if inside else d - reach
             if d < best:
                 best, kind = d, state[y, x]
     return best, kind

@@ -1,0 +1,174 @@
+"""Floor segmentation: RANSAC planes, region growing, ramps and steps, precision/recall."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+import pytest
+
+from scanmap import grid_kernels as gk
+from scanmap.floor import (
+    FREE,
+    OBSTACLE,
+    FloorParams,
+    RobotShape,
+    floor_candidates,
+    grow_region,
+    ransac_plane,
+    segment,
+)
+from scanmap.grid import GridConfig, HeightGrid
+from scanmap_driver.errors import MapError
+
+from . import scenes as S
+
+
+def test_ransac_recovers_a_tilted_plane_among_outliers():
+    rng = np.random.default_rng(0)
+    slope = math.radians(6.0)
+    xy = rng.uniform(-3, 3, (3000, 2))
+    z = 0.2 + math.tan(slope) * xy[:, 0] + rng.normal(0, 0.005, 3000)
+    outliers = np.column_stack([rng.uniform(-3, 3, (1000, 2)), rng.uniform(0.1, 1.0, 1000)])
+    found = ransac_plane(np.vstack([np.column_stack([xy, z]), outliers]), FloorParams(),
+                         np.random.default_rng(1))
+    assert found is not None
+    normal, offset, inliers = found
+    assert math.degrees(math.acos(normal[2])) == pytest.approx(6.0, abs=0.3)
+    assert offset / normal[2] == pytest.approx(0.2, abs=0.005)
+    assert inliers[:3000].mean() > 0.99 and inliers[3000:].mean() < 0.15
+
+
+def test_ransac_refuses_a_steep_plane():
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(-1, 1, (500, 2))
+    wall = np.column_stack([xy[:, 0], np.zeros(500), xy[:, 1] + 1])
+    assert ransac_plane(wall, FloorParams(), rng) is None
+
+
+def test_floor_candidates_match_a_numpy_reference():
+    rng = np.random.default_rng(3)
+    levels = np.zeros((20, 30, 3, gk.N_FLOAT_FIELDS), np.float32)
+    lo = rng.uniform(-0.05, 0.5, (20, 30, 3)).astype(np.float32)
+    levels[..., gk.LO] = np.sort(lo, axis=2)
+    levels[..., gk.HI] = levels[..., gk.LO] + rng.uniform(0, 0.12, (20, 30, 3))
+    nlev = rng.integers(0, 4, (20, 30)).astype(np.uint8)
+    got = floor_candidates(levels, nlev, 0.06, 0.2)
+    first, second = levels[:, :, 0], levels[:, :, 1]
+    thin = first[..., gk.HI] - first[..., gk.LO] <= 0.06
+    clear = (nlev == 1) | (second[..., gk.LO] - first[..., gk.HI] >= 0.2)
+    ok = (nlev > 0) & thin & clear
+    expected = np.where(ok, 0.5 * (first[..., gk.LO] + first[..., gk.HI]), np.nan)
+    np.testing.assert_allclose(got, expected, equal_nan=True, rtol=1e-6)
+
+
+def test_grow_region_matches_a_breadth_first_reference():
+    rng = np.random.default_rng(4)
+    heights = np.cumsum(rng.normal(0, 0.03, (25, 25)), axis=1).astype(np.float32)
+    heights[rng.random((25, 25)) < 0.2] = np.nan
+    seeds = np.zeros((25, 25), bool)
+    seeds[12, 12] = seeds[3, 20] = True
+    got = grow_region(heights, seeds, 0.05)
+    inside = seeds.copy()
+    queue = deque(zip(*np.nonzero(seeds), strict=True))
+    while queue:
+        y, x = queue.popleft()
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                yy, xx = y + dy, x + dx
+                if 0 <= yy < 25 and 0 <= xx < 25 and not inside[yy, xx] \
+                        and abs(heights[yy, xx] - heights[y, x]) <= 0.05:
+                    inside[yy, xx] = True
+                    queue.append((yy, xx))
+    np.testing.assert_array_equal(got, inside)
+
+
+def ramp_scene() -> S.Scene:
+    """A ramp rising 1 cm per 5 cm cell (11 deg) from x = 0.5 m to a 0.3 m platform."""
+    steps = tuple(S.Box((0.5125 + 0.05 * k, -0.4875, 0.0), (0.5625 + 0.05 * k, 0.4875,
+                                                               0.01 * (k + 1)))
+                  for k in range(30))  # contiguous: each step is one cell wide
+    platform = S.Box((2.0125, -0.4875, 0.0), (2.7875, 0.4875, 0.30))
+    return S.room((*steps, platform))
+
+
+def test_a_ramp_and_the_platform_it_reaches_are_floor_with_their_planes():
+    scene = ramp_scene()
+    grid = HeightGrid(GridConfig(extent=50.0))
+    poses = [(-0.5, 0.0, 0.0), (0.0, 1.5, 1.0), (0.0, -1.5, 2.0), (2.2, 0.0, 3.0),
+             (1.2, 1.2, 4.0), (1.2, -1.2, 5.0)]
+    S.map_scene(scene, poses, grid)
+    layers = grid.layers((-3.0, -3.0, 3.0, 3.0))
+    seg = segment(layers)
+    xs, ys = layers.cell_centers()
+    x, y = np.meshgrid(xs, ys)
+    ramp = (x > 0.6) & (x < 1.9) & (np.abs(y) < 0.4) & (layers.nlev > 0)
+    platform = (x > 2.1) & (x < 2.7) & (np.abs(y) < 0.4) & (layers.nlev > 0)
+    assert seg.is_floor[ramp].mean() > 0.95 and seg.is_floor[platform].mean() > 0.95
+    true_height = np.clip(np.floor((x - 0.5125) / 0.05) * 0.01 + 0.01, 0.0, 0.3)
+    assert np.abs(seg.floor_height[ramp] - true_height[ramp]).max() < 0.015
+    assert not (seg.state[ramp | platform] == OBSTACLE).any()
+    tilts = [math.degrees(math.acos(p.normal[2])) for p in seg.planes]
+    assert any(abs(t - math.degrees(math.atan(0.2))) < 1.5 for t in tilts), tilts
+    assert any(t < 0.5 and abs(p.offset / p.normal[2] - 0.3) < 0.01
+               for t, p in zip(tilts, seg.planes, strict=True)), seg.planes
+
+
+def test_a_box_higher_than_the_step_is_an_obstacle_and_its_top_no_floor():
+    box = S.cell_box(10, 10, 20, 20, 0.0, 0.10)
+    scene = S.room((box,))
+    grid = HeightGrid(GridConfig(extent=50.0))
+    mapped = S.map_scene(scene, [(-0.5, 0.0, 0.0), (1.5, 2.2, 2.0)], grid)
+    layers = grid.layers((-3.0, -3.0, 3.0, 3.0))
+    seg = segment(layers)
+    on_box = (mapped.labels == 4) & (mapped.points[:, 2] > 0.05)  # above the step height
+    ix = np.floor((mapped.points[on_box, 0] - layers.origin[0]) / 0.05).astype(int)
+    iy = np.floor((mapped.points[on_box, 1] - layers.origin[1]) / 0.05).astype(int)
+    assert len(ix) > 100
+    assert (seg.state[iy, ix] == OBSTACLE).all()
+    assert not seg.is_floor[iy, ix].any()
+
+
+def test_floor_precision_and_recall_on_the_furnished_room():
+    scene = S.furnished_room()
+    robot = RobotShape(height=0.8)
+    mapped = S.map_scene(scene, S.ROOM_POSES, HeightGrid(GridConfig(extent=50.0)))
+    layers = mapped.grid.layers((-3.1, -3.1, 3.1, 3.1))
+    seg = segment(layers, robot)
+    xs, ys = layers.cell_centers()
+    truth = S.truth_floor(scene, xs, ys, robot.step_height)
+    walkable = [k for k, b in enumerate(scene.boxes) if b.hi[2] <= robot.step_height]
+    on_floor = np.isin(mapped.labels, [S.FLOOR, *walkable])
+    ix = np.floor((mapped.points[on_floor, 0] - layers.origin[0]) / 0.05).astype(int)
+    iy = np.floor((mapped.points[on_floor, 1] - layers.origin[1]) / 0.05).astype(int)
+    floor_seen = np.zeros(layers.shape, bool)
+    floor_seen[iy, ix] = True
+    predicted = seg.is_floor
+    precision = (predicted & truth).sum() / predicted.sum()
+    recall = (predicted & truth & floor_seen).sum() / (truth & floor_seen).sum()
+    assert precision >= 0.99 and recall >= 0.99, (precision, recall)
+
+
+def test_a_2d_laser_map_needs_an_assumed_floor():
+    """Points all at 0.3 m (a 2-D scan): no floor is seen; with fallback_floor the walls
+    are obstacles and the beams' cells free."""
+    grid = HeightGrid(GridConfig(extent=50.0))
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    wall = np.column_stack([2.0 * np.cos(angles), 2.0 * np.sin(angles), np.full(360, 0.3)])
+    grid.insert(wall, np.array([0.0, 0.0, 0.3]), 0.0)
+    layers = grid.layers((-2.5, -2.5, 2.5, 2.5))
+    assert not (segment(layers).state != 0).any()  # no floor: nothing known
+    flat = FloorParams(min_coverage=0.0, min_coverage_no_floor=0.0, detect=False)
+    seg = segment(layers, params=flat, fallback_floor=0.0)
+    xs, ys = layers.cell_centers()
+    r = np.hypot(*np.meshgrid(xs, ys))
+    assert (seg.state[np.abs(r - 2.0) < 0.02] == OBSTACLE).mean() > 0.9
+    assert (seg.state[(r > 0.5) & (r < 1.8)] == FREE).mean() > 0.9
+
+
+@pytest.mark.parametrize("kwargs", [{"step_height": 0.0}, {"height": -1.0},
+                                    {"radius": math.nan}, {"step_height": 1.2}])
+def test_robot_shape_rejects_nonsense(kwargs):
+    with pytest.raises(MapError):
+        RobotShape(**kwargs)
