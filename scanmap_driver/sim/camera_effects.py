@@ -97,8 +97,3 @@ def encode_mjpg(image: np.ndarray, settings: CameraSettings) -> bytes:
     if not ok:
         raise RecordingError("OpenCV could not encode a JPEG frame")
     return data.tobytes()
-
-
-def decode_mjpg(data: bytes) -> np.ndarray | None:
-    """The BGR image of one JPEG frame, or None when it does not decode."""
-    return cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)

@@ -4,14 +4,14 @@ While the shutter is open the head turns by a few tenths of a degree to a few de
 everything fixed in `map` or `base_link` sweeps across the image, mostly along the image
 rows (v). `rotation_flow` gives each pixel's image motion per radian of heading, from the
 3D point it sees (the camera sits off the axis, so near points move differently from far
-ones). `blur_along_flow` averages each pixel over its path: the exposure is split into a few
-sub-intervals; in each, the path is integrated exactly along v with prefix sums (no
-ghosting however long the path) at the sub-interval's mean u. Rolling shutter is the same
-operation with heading offsets that differ per image row.
+ones). `blur_along_flow` averages each pixel over its path: the path is integrated exactly along
+v with prefix sums (no ghosting however long the path), then shifted along u by its mean
+drift. Rolling shutter is the same operation with heading offsets that differ per row.
 """
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from numba import njit
 
@@ -52,15 +52,15 @@ def rotation_flow(t: np.ndarray, directions: np.ndarray, centre: np.ndarray,
 
 
 @njit(cache=True, nogil=True)
-def blur_along_flow(image: np.ndarray, flow: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Average each pixel of `image` (H, W, C) over its path during the exposure.
+def box_along_rows(image: np.ndarray, flow_v: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Average each pixel of `image` (H, W, C) over its path along v during the exposure.
 
-    flow: (H, W, 2) (du, dv) per radian; offsets: (H, K + 1) heading offsets (rad, relative
-    to the rendered heading) at the K + 1 boundaries of the exposure's sub-intervals of
-    equal time, per image row (rows differ under a rolling shutter). A pixel p sees at
-    offset o what the rendered image shows at p - flow(p) * o. Rows are piecewise
-    constant along v; outside the image the nearest row/column continues. Paths shorter
-    than MIN_SWEEP along v are sampled at their middle.
+    flow_v: (H, W) dv per radian; offsets: (H, K + 1) heading offsets (rad, relative to
+    the rendered heading) at the K + 1 boundaries of the exposure's sub-intervals of equal
+    time, per image row (rows differ under a rolling shutter). A pixel p sees at offset o
+    what the rendered image shows at p - flow(p) * o. Rows are piecewise constant; beyond
+    the image the edge row continues. Paths shorter than MIN_SWEEP are sampled at their
+    middle.
     """
     height, width, channels = image.shape
     # prefix[r, col, c]: integral of the column from -0.5 to r - 0.5.
@@ -74,32 +74,44 @@ def blur_along_flow(image: np.ndarray, flow: np.ndarray, offsets: np.ndarray) ->
     out = np.zeros_like(image)
     for row in range(height):
         for col in range(width):
-            du, dv = flow[row, col, 0], flow[row, col, 1]
+            dv = flow_v[row, col]
             for k in range(parts):
-                a, b = offsets[row, k], offsets[row, k + 1]
-                u = min(max(col - du * 0.5 * (a + b), 0.0), width - 1.0)
-                c0 = min(int(u), width - 2) if width > 1 else 0
-                c1 = min(c0 + 1, width - 1)
-                w1 = u - c0
-                w0 = 1.0 - w1
-                v0, v1 = row - dv * a, row - dv * b
+                v0, v1 = row - dv * offsets[row, k], row - dv * offsets[row, k + 1]
                 lo, hi = min(v0, v1), max(v0, v1)
                 if hi - lo > MIN_SWEEP:
-                    # rows clamped into the image; the part of the path outside it is
-                    # charged to the edge row
                     i_lo = min(max(int(np.floor(lo + 0.5)), 0), height - 1)
                     i_hi = min(max(int(np.floor(hi + 0.5)), 0), height - 1)
                     f_lo = lo + 0.5 - i_lo
                     f_hi = hi + 0.5 - i_hi
                     scale = share / (hi - lo)
                     for c in range(channels):
-                        s0 = (prefix[i_hi, c0, c] + f_hi * image[i_hi, c0, c]
-                              - prefix[i_lo, c0, c] - f_lo * image[i_lo, c0, c])
-                        s1 = (prefix[i_hi, c1, c] + f_hi * image[i_hi, c1, c]
-                              - prefix[i_lo, c1, c] - f_lo * image[i_lo, c1, c])
-                        out[row, col, c] += scale * (w0 * s0 + w1 * s1)
+                        out[row, col, c] += scale * (
+                            prefix[i_hi, col, c] + f_hi * image[i_hi, col, c]
+                            - prefix[i_lo, col, c] - f_lo * image[i_lo, col, c])
                 else:
                     i = min(max(int(np.floor(0.5 * (lo + hi) + 0.5)), 0), height - 1)
                     for c in range(channels):
-                        out[row, col, c] += share * (w0 * image[i, c0, c] + w1 * image[i, c1, c])
+                        out[row, col, c] += share * image[i, col, c]
     return out
+
+
+def blur_along_flow(image: np.ndarray, flow: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Average each pixel of `image` (H, W, C) over its path during the exposure.
+
+    flow: (H, W, 2) (du, dv) per radian; offsets as for `box_along_rows`. The path is
+    integrated along v (`box_along_rows`), then shifted along u by its mean u offset
+    (bilinear, edge columns continue): the u drift along one exposure's path is a few
+    pixels at most.
+    """
+    blurred = box_along_rows(image, np.ascontiguousarray(flow[:, :, 1]), offsets)
+    middle = offsets.mean(axis=1, dtype=np.float64)
+    shift = flow[:, :, 0] * middle[:, None].astype(np.float32)
+    if np.abs(shift).max(initial=0.0) < 1e-3:
+        return blurred
+    height, width = shift.shape
+    map_u = np.arange(width, dtype=np.float32)[None, :] - shift
+    map_v = np.repeat(np.arange(height, dtype=np.float32)[:, None], width, axis=1)
+    channels = [cv2.remap(np.ascontiguousarray(blurred[:, :, c]), map_u, map_v,
+                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                for c in range(blurred.shape[2])]
+    return np.stack(channels, axis=-1)

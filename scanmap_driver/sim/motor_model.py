@@ -120,9 +120,8 @@ class DcMotor:
         return float(self.state[1])
 
     def advance(self, duty: float, duration: float, brake: bool = False) -> np.ndarray:
-        """Run `duration` s at a constant duty (brake: short the motor at duty 0).
-
-        Returns the heading after each STEP.
+        """Run `duration` s, rounded to whole STEPs (at least one), at a constant duty
+        (brake: short the motor at duty 0). Returns the heading after each STEP.
         """
         steps = max(1, round(duration / STEP))
         return self.run(duty, brake, RUN_STEPS, 0.0, steps)

@@ -14,6 +14,7 @@ incidence gives `LaserAppearance.power` in red.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -94,11 +95,15 @@ class FrameLight:
 
 @dataclass(frozen=True)
 class RenderedFrame:
-    """A frame as the webcam delivers it (JPEG bytes and decoded BGR) and its truth."""
+    """A frame as the webcam delivers it (MJPG: JPEG bytes) and its truth."""
 
     jpeg: bytes
-    image: np.ndarray
     truth: FrameTruth
+
+    @functools.cached_property
+    def image(self) -> np.ndarray:
+        """The frame decoded to BGR, as OpenCV hands it over (decoded on first use)."""
+        return cv2.imdecode(np.frombuffer(self.jpeg, dtype=np.uint8), cv2.IMREAD_COLOR)
 
 
 @dataclass
@@ -146,9 +151,7 @@ class Renderer:
         """Frame `frame` of scan `plan` as the webcam delivers it, noise drawn from `rng`."""
         light = self.light(plan, frame, rng)
         image = expose(light.radiance, self.camera, rng)
-        jpeg = encode_mjpg(image, self.camera)
-        delivered = cv2.imdecode(np.frombuffer(jpeg, dtype=np.uint8), cv2.IMREAD_COLOR)
-        return RenderedFrame(jpeg, delivered, light.truth)
+        return RenderedFrame(encode_mjpg(image, self.camera), light.truth)
 
     def light(self, plan: ScanPlan, frame: int, rng: np.random.Generator) -> FrameLight:
         """The light reaching the sensor during frame `frame` of scan `plan`."""

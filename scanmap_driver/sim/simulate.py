@@ -11,9 +11,11 @@ raster (`raster.npz`, 0.05 m, band 0.05-1.0 m) and the true pose at each scan's 
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
 import os
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
@@ -24,10 +26,11 @@ from ..recording import GROUND_TRUTH, RecordingWriter, scan_name
 from ..scanner_model import ScannerModel
 from ..transforms import rotation_to_quaternion
 from .camera_effects import CameraSettings
+from .geometry import scene_planes
 from .ideal import ideal_scans
 from .plan import ScanPlan, plan_scans
 from .raster import truth_raster
-from .render import LIGHTING, Renderer
+from .render import LIGHTING, RenderedFrame, Renderer
 from .scene import Scene
 from .truth import ScanTruth, truth_path
 
@@ -45,22 +48,25 @@ def lit_scene(scene: Scene, lighting: str | None) -> Scene:
 
 def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: ScannerModel, *,
                        seed: int = 0, scans: int | None = None,
-                       camera: CameraSettings | None = None, workers: int = 2,
+                       camera: CameraSettings | None = None, workers: int = 1,
                        progress: Callable[[str], None] | None = None) -> Path:
-    """Render and write a raw recording with ground truth; returns its folder."""
+    """Render and write a raw recording with ground truth; returns its folder.
+
+    Frames render in `workers` processes (Open3D holds the GIL while it casts rays, so
+    threads would not run in parallel). The processes are spawned: a script calling this
+    with workers > 1 needs the usual `if __name__ == "__main__":` guard. Every frame's
+    noise has its own seed, so the files are the same for any number of workers.
+    """
     camera = camera or CameraSettings()
     out = Path(out)
     plans = plan_scans(scene, model, seed, scans)
-    renderer = Renderer(scene, model, camera)
     writer = RecordingWriter(out, model, source="simulator", extra={
         "scene": scene.name, "seed": seed, "ambient": scene.ambient, "camera": asdict(camera)})
     _write_common_truth(out, scene, plans)
-    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+    plane_object = scene_planes(scene).plane_object
+    with _frame_pool(scene, model, camera, workers) as render:
         for plan in plans:
-            frames = list(pool.map(
-                lambda i, plan=plan: renderer.render(
-                    plan, i, np.random.default_rng([seed, _FRAME_NOISE, plan.index, i])),
-                range(plan.frame_times.shape[0])))
+            frames = render([(plan, i, seed) for i in range(plan.frame_times.shape[0])])
             with writer.scan(stamp=plan.stamp, exposure=camera.exposure) as scan:
                 for frame in frames:
                     scan.add_jpeg(frame.jpeg, plan.stamp + frame.truth.time)
@@ -68,12 +74,40 @@ def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: Scanner
                     scan.log_motor(plan.stamp + entry["t"], entry["command"],
                                    duty=entry["duty"])
                 scan.set_odometry(plan.odom_start, plan.odom_end)
-            ScanTruth.from_frames(plan, [f.truth for f in frames],
-                                  renderer.world.world.planes.plane_object
+            ScanTruth.from_frames(plan, [f.truth for f in frames], plane_object
                                   ).save(truth_path(out, plan.index))
             if progress:
                 progress(f"scan {plan.index + 1}/{len(plans)}: {len(frames)} frames")
     return out
+
+
+_worker: dict[str, Renderer] = {}  # the renderer of a worker process
+
+
+def _start_worker(scene: dict, model: dict, camera: CameraSettings) -> None:
+    _worker["renderer"] = Renderer(Scene.from_dict(scene), ScannerModel.from_dict(model),
+                                   camera)
+
+
+def _render_task(task: tuple[ScanPlan, int, int]) -> RenderedFrame:
+    plan, frame, seed = task
+    rng = np.random.default_rng([seed, _FRAME_NOISE, plan.index, frame])
+    return _worker["renderer"].render(plan, frame, rng)
+
+
+@contextlib.contextmanager
+def _frame_pool(scene: Scene, model: ScannerModel, camera: CameraSettings,
+                workers: int) -> Iterator[Callable[[list], list[RenderedFrame]]]:
+    """A function rendering a list of (plan, frame, seed) tasks, in worker processes."""
+    init = (scene.to_dict(), model.to_dict(), camera)
+    if workers <= 1:
+        _start_worker(*init)
+        yield lambda tasks: [_render_task(task) for task in tasks]
+        return
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
+                             initargs=init) as pool:
+        yield lambda tasks: list(pool.map(_render_task, tasks, chunksize=4))
 
 
 def simulate_ideal(scene: Scene, out: str | os.PathLike[str], model: ScannerModel, *,

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from scanmap_driver import reference_scanner
 from scanmap_driver.sim import builtin_scene, ideal_scans
 from scanmap_driver.sim.laser_stripe import head_poses, project
+from scanmap_driver.sim.scene import Motion
 from scanmap_driver.transforms import invert_pose, pose_to_se2, transform_points
 
 from .scene_sdf import surface_distance
@@ -94,3 +97,16 @@ def test_odometry_follows_the_true_motion_with_drift(corridor_scans):
     assert np.hypot(*true_step[:2]) == pytest.approx(0.8, abs=0.05)
     assert np.hypot(odom_step[0] - true_step[0], odom_step[1] - true_step[1]) < 0.05
     assert odom_step != true_step
+
+
+def test_the_robot_can_keep_driving_during_a_scan():
+    scene = dataclasses.replace(builtin_scene("corridor"), motion=Motion(speed=0.2, yaw_rate=0.0))
+    ideal = next(ideal_scans(scene, seed=2, scans=1))
+    duration = ideal.plan.frame_times[-1] - ideal.plan.frame_times[0]
+    travel = ideal.pose_end[:3, 3] - ideal.pose_start[:3, 3]
+    assert np.linalg.norm(travel) == pytest.approx(0.2 * duration, rel=1e-9)
+    # every frame's points are in that frame's base_link: in map they lie on the walls
+    world = _map_points(ideal, ideal.true_points)
+    assert surface_distance(scene, world).max() < 5e-4
+    odom = pose_to_se2(invert_pose(ideal.scan.odom_start) @ ideal.scan.odom_end)
+    assert np.hypot(*odom[:2]) == pytest.approx(0.2 * duration, rel=0.05)

@@ -131,22 +131,23 @@ def test_rotation_flow_matches_finite_differences_of_the_projection():
 
 
 def _blur_reference(image, flow, offsets, samples=4000):
-    """Dense sampling of each pixel's path: rows piecewise constant, columns linear."""
+    """Dense sampling of each pixel's path along v (rows piecewise constant, the edge row
+    beyond the image), then the mean drift along u by linear interpolation."""
     height, width, _ = image.shape
-    out = np.zeros_like(image, dtype=np.float64)
+    boxed = np.zeros_like(image, dtype=np.float64)
     fractions = (np.arange(samples) + 0.5) / samples
     for row in range(height):
         for col in range(width):
-            for a, b in zip(offsets[row, :-1], offsets[row, 1:], strict=True):
-                mid = 0.5 * (a + b)
-                u = np.clip(col - flow[row, col, 0] * mid, 0, width - 1)
-                c0 = min(int(u), width - 2)
-                w1 = u - c0
+            for a, b in itertools.pairwise(offsets[row]):
                 v = row - flow[row, col, 1] * (a + fractions * (b - a))
-                rows = np.clip(np.floor(np.clip(v, -0.5, height - 0.5) + 0.5), 0,
-                               height - 1).astype(int)
-                out[row, col] += ((1 - w1) * image[rows, c0] + w1 * image[rows, c0 + 1]).mean(0)
-            out[row, col] /= offsets.shape[1] - 1
+                rows = np.clip(np.floor(v + 0.5), 0, height - 1).astype(int)
+                boxed[row, col] += image[rows, col].mean(0)
+            boxed[row, col] /= offsets.shape[1] - 1
+    out = np.empty_like(boxed)
+    for row in range(height):
+        u = np.clip(np.arange(width) - flow[row, :, 0] * offsets[row].mean(), 0, width - 1)
+        for c in range(image.shape[2]):
+            out[row, :, c] = np.interp(u, np.arange(width), boxed[row, :, c])
     return out
 
 
