@@ -95,8 +95,9 @@ class ProgressLine:
         """Summarise a finished (or failed) scan on its own line."""
         state = f"FAILED ({result.fault})" if result.fault else "done"
         start = "\r" if self.live else ""
-        print(f"{start}scan {result.scan.index}: {state}, "
-              f"{len(result.scan)} points, {len(result.frame_times)} frames, "
+        points = "" if result.summary is None else f"{len(result.scan)} points, "
+        print(f"{start}scan {result.scan.index}: {state}, {points}"
+              f"{len(result.frame_times)} frames, "
               f"{result.dropped_frames + result.overflow_frames} dropped, "
               f"{math.degrees(result.coverage):.0f} deg in {result.duration:.1f} s       ",
               file=sys.stderr)
@@ -109,7 +110,9 @@ def _scan(args: argparse.Namespace) -> int:
         count = 0
         for scan, summary in replay_recording(args.replay):
             _save(scan, args)
-            print(f"scan {scan.index}: {len(scan)} points from {summary}", file=sys.stderr)
+            print(f"scan {scan.index}: {len(scan)} points from {summary.frames} frames, "
+                  f"{summary.headings_covered_deg:.0f} deg covered, "
+                  f"{summary.unreadable_frames} with the encoder unreadable", file=sys.stderr)
             count += 1
         print(f"replayed {count} scans from {args.replay}")
         return 0

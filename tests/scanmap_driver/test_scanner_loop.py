@@ -256,6 +256,20 @@ def test_continuous_scanning_hands_the_fault_to_the_consumer():
         scanning.stop()
 
 
+def test_stopping_continuous_scanning_brakes_at_once_and_keeps_the_partial_scan():
+    with rig(ScanSettings(continuous=True), FAST) as r:
+        scanning = ContinuousScanning(r.scanner)
+        scanning.start()
+        assert wait_until(lambda: r.firmware.driven, 5.0)
+        time.sleep(0.3)
+        start = time.monotonic()
+        scanning.stop()  # what Ctrl-C does in `scanmap scan --continuous`
+        assert time.monotonic() - start < 1.0
+        assert r.firmware.state == "BRAKE" and brake_time(r.firmware) < start + 0.5
+        assert r.scanner.last_result.fault == "cancelled" and len(r.scanner.last_result.scan)
+        assert scanning.get(timeout=0.1) is None  # a cancel is not an error
+
+
 # -- heading tracking --------------------------------------------------------------------------
 
 def test_tracker_unwraps_through_gaps_and_skips_a_lone_outlier():
