@@ -8,8 +8,9 @@ import pytest
 from scanmap_driver import reference_scanner, triangulate
 from scanmap_driver.sim import builtin_scene, plan_scans
 from scanmap_driver.sim.camera_effects import CameraSettings
-from scanmap_driver.sim.laser_stripe import points_from_fan
+from scanmap_driver.sim.laser_stripe import head_poses, points_from_fan, project
 from scanmap_driver.sim.render import LIGHTING, LaserAppearance, Renderer
+from scanmap_driver.transforms import transform_points
 
 from .scene_sdf import surface_distance
 
@@ -170,3 +171,30 @@ def test_motion_blurs_the_scene_and_sweeps_the_laser_as_the_geometry_says():
             assert width == pytest.approx(expected, abs=0.35)
             checked += 1
     assert checked > 100
+
+
+def test_the_encoder_disk_shows_its_code_where_the_geometry_puts_it(office):
+    """Sector centres of the disk (fixed in base_link) projected into a still frame: the
+    rendered disk is white on '1' sectors and black on '0' sectors."""
+    scene, plan = office
+    renderer = Renderer(scene.with_ambient(0.0), MODEL)
+    light = renderer.light(plan, 0, np.random.default_rng(0))
+    disk = MODEL.encoder
+    angles = disk.zero_offset + (np.arange(disk.sectors) + 0.5) * disk.sector_angle
+    radius = 0.5 * (disk.inner_radius + disk.outer_radius)
+    points = np.column_stack([radius * np.cos(angles), radius * np.sin(angles),
+                              np.full(angles.size, disk.height)])
+    _, base_head = head_poses(MODEL, np.eye(4)[None], np.array([light.truth.heading]))
+    head = transform_points(np.linalg.inv(base_head[0]), points)
+    pixels = project(MODEL, head)
+    seen = []
+    for (u, v), bit in zip(pixels, disk.bits(), strict=True):
+        if not (0 <= u < 640 and 0 <= v < 480):
+            continue
+        col, row = round(float(u)), round(float(v))
+        if light.disk[row, col] > 0.99:
+            seen.append((bit, light.radiance[row, col, 1]))
+    assert len(seen) >= 5  # more than the 5 sectors that fix the heading
+    white = [value for bit, value in seen if bit == 1]
+    black = [value for bit, value in seen if bit == 0]
+    assert min(white, default=1.0) > 0.3 and max(black, default=0.0) < 0.1
