@@ -235,7 +235,7 @@ class MotorController:
     def stop_safely(self) -> str | None:
         """Try to brake the motor, whatever state the link is in; returns why it failed."""
         try:
-            self._request("BRAKE", ignore_failure=True)
+            self._request("BRAKE", while_closing=True)
         except DeviceError as exc:
             return str(exc)
         return None
@@ -291,12 +291,12 @@ class MotorController:
         raise DeviceError(f"{self.port}: no scanmap motor controller answered HELLO within "
                           f"{connect_timeout:.1f} s (wrong port, no firmware, or wrong baud rate)")
 
-    def _request(self, command: str, ignore_failure: bool = False) -> list[str]:
+    def _request(self, command: str, while_closing: bool = False) -> list[str]:
         """Send `command`, return the OK reply's words after the command name."""
         with self._lock:
             if self._failure is not None:
                 raise DeviceError(str(self._failure))
-            if self._closing.is_set() and not ignore_failure:
+            if self._closing.is_set() and not while_closing:
                 raise DeviceError(f"motor controller on {self.port} is closed")
             name = command.split()[0]
             for _ in range(self.retries + 1):
@@ -304,20 +304,21 @@ class MotorController:
                 reply = self._await({tag}, time.monotonic() + self.timeout, name)
                 if reply is not None:
                     return reply[1:]
+            sent = ""
             if name != "BRAKE":
                 with contextlib.suppress(DeviceError):
                     self._send("BRAKE")
+                    sent = "a brake was sent, and "
             raise DeviceError(
                 f"motor controller on {self.port} did not answer {name} within "
-                f"{self.timeout:.2f} s ({self.retries + 1} tries); a brake was sent, and the "
-                "firmware watchdog stops the motor if the link is dead")
+                f"{self.timeout:.2f} s ({self.retries + 1} tries); {sent}the firmware "
+                "watchdog stops the motor if the link is dead")
 
     def _send(self, command: str) -> int:
         tag = self._next_tag
         self._next_tag = self._next_tag % MAX_ID + 1
-        try:
+        try:  # no flush(): tcdrain has no timeout on a wedged adapter; write() has one
             self._link.write(frame_line(command, tag))
-            self._link.flush()
         except LINK_ERRORS as exc:
             raise self._vanished(exc) from None
         return tag
