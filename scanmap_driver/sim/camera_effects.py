@@ -86,7 +86,7 @@ def expose(radiance: np.ndarray, settings: CameraSettings,
     counts = np.clip(electrons * np.float32(65535.0 / settings.full_well), 0.0, 65535.0)
     # OpenCV names Bayer patterns by the second row's start: an RGGB sensor is "BayerBG".
     linear = cv2.cvtColor(np.round(counts).astype(np.uint16), cv2.COLOR_BayerBG2BGR)
-    return SRGB[linear]
+    return np.take(SRGB, linear)
 
 
 def encode_mjpg(image: np.ndarray, settings: CameraSettings) -> bytes:
