@@ -4,6 +4,12 @@ Entry points: `ScanOdometry` registers a sequence of scans (odometry prior, de-s
 local map, recovery); `register_scan` registers one prepared scan (`prepare_source`)
 against a `LocalMap` with a `Prior`. Results are `RegistrationResult`s with a pose,
 covariance, fitness, inlier RMSE, degenerate directions and a `Status`.
+
+The floor: it constrains only z, roll and pitch. Planar mode (the default: the floor is
+flat, the pose is x, y, yaw) drops points below `floor_band` before anything else, and
+matches only walls (neighbourhoods that are a line seen from above and that rise), so
+neither the floor nor a table top can pull x, y or yaw. SE(3) mode keeps the floor: it
+is what fixes z, roll and pitch there.
 """
 
 from .config import RegistrationConfig

@@ -2,12 +2,13 @@
 
 Each source point (a voxel mean in base_link) is moved by the current pose and matched
 to the nearest usable map voxel among the 2x2x2 voxels whose centres surround it (4x4x2
-when the correspondence threshold exceeds a voxel): usable means a plane in SE(3) mode, a line
-of the xy footprint in planar mode (horizontal surfaces cannot move x, y or yaw). The
+when the correspondence threshold exceeds a voxel): usable means a plane in SE(3) mode,
+a wall in planar mode (the floor and table tops cannot move x, y or yaw). The
 candidate's normal must agree with the source point's own, where known (within
-max_normal_angle): near a door jamb, a wall point's nearest usable voxel may be the jamb's. The
-residual is the signed distance to that voxel's plane, r = n . (R p + t - mu); its
-Jacobian for a body-frame increment (rho, phi) is [R^T n, p x R^T n].
+max_normal_angle): near a door jamb, a wall point's nearest usable voxel may be the
+jamb's. The residual is the signed distance to that voxel's plane (its horizontal trace
+in planar mode), r = n . (R p + t - mu); its Jacobian for a body-frame increment
+(rho, phi) is [R^T n, p x R^T n].
 
 Weights: Geman-McClure, w = (k^2 / (k^2 + r^2))^2 with k a third of the threshold, over
 the point's variance (range sigma of the mean + plane thickness + model floor), so a

@@ -55,11 +55,8 @@ def pose_log(pose: np.ndarray) -> np.ndarray:
 
 
 def retract(pose: np.ndarray, delta: np.ndarray) -> np.ndarray:
-    """pose * exp(delta), re-orthonormalised."""
-    out = pose @ pose_exp(delta)
-    u, _, vt = np.linalg.svd(out[:3, :3])
-    out[:3, :3] = u @ vt
-    return out
+    """pose * exp(delta) (a product of rotations stays orthonormal to rounding)."""
+    return pose @ pose_exp(delta)
 
 
 def between(a: np.ndarray, b: np.ndarray) -> np.ndarray:

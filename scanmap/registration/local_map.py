@@ -75,19 +75,22 @@ class LocalMap:
     def __len__(self) -> int:
         return self.size
 
-    def insert(self, points: np.ndarray, scan_id: int,
-               variance: np.ndarray | float = 1e-4) -> None:
-        """Add (N, 3) points (map-local coordinates; non-finite ones are skipped) with their
-        range variance (m^2) and refresh the planes they touch. `scan_id` must differ from
-        the previous call's."""
+    def insert(self, points: np.ndarray, scan_id: int, variance: np.ndarray | float = 1e-4,
+               pose: np.ndarray | None = None) -> None:
+        """Add (N, 3) points with their range variance (m^2) and refresh the planes they
+        touch. Points are map-local, or moved there by the 4x4 `pose`; non-finite ones are
+        skipped. `scan_id` must differ from the previous call's."""
         points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
         variance = np.ascontiguousarray(np.broadcast_to(variance, len(points)),
                                         dtype=np.float64)
         if self.size + len(points) > self.table_keys.size // 2:
             self._allocate(max(2 * self.voxel_keys.shape[0], self.size + len(points)))
         touched = np.empty(len(points), dtype=np.int64)
         self.size, n_touched, outside = _insert_points(
-            points, variance, 1.0 / self.voxel_size, self.voxel_size, int(scan_id), self.size,
+            points, variance, np.ascontiguousarray(pose[:3, :3]),
+            np.ascontiguousarray(pose[:3, 3]), 1.0 / self.voxel_size, self.voxel_size,
+            int(scan_id), self.size,
             self.table_keys, self.table_values, self.voxel_keys, self.counts, self.sums,
             self.squares, self.noise, self.last_seen, touched)
         _refresh_planes(touched[:n_touched], self.voxel_size, self.max_count, self.min_points,
@@ -116,13 +119,19 @@ class LocalMap:
 
 
 @njit(cache=True, nogil=True)
-def _insert_points(points, variance, inv_voxel, voxel, scan_id, size, table_keys, table_values,
-                   voxel_keys, counts, sums, squares, noise, last_seen, touched):
+def _insert_points(points, variance, rotation, translation, inv_voxel, voxel, scan_id, size,
+                   table_keys, table_values, voxel_keys, counts, sums, squares, noise,
+                   last_seen, touched):
     n_touched = 0
     outside = 0
     limit = (COORD_LIMIT - 1) * voxel
+    last_key = -1
+    slot = -1
     for i in range(points.shape[0]):
-        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        px = rotation[0, 0] * x + rotation[0, 1] * y + rotation[0, 2] * z + translation[0]
+        py = rotation[1, 0] * x + rotation[1, 1] * y + rotation[1, 2] * z + translation[1]
+        pz = rotation[2, 0] * x + rotation[2, 1] * y + rotation[2, 2] * z + translation[2]
         if not (abs(px) < limit and abs(py) < limit and abs(pz) < limit):
             if math.isfinite(px) and math.isfinite(py) and math.isfinite(pz):
                 outside += 1
@@ -131,7 +140,9 @@ def _insert_points(points, variance, inv_voxel, voxel, scan_id, size, table_keys
         iy = math.floor(py * inv_voxel)
         iz = math.floor(pz * inv_voxel)
         key = voxel_key(ix, iy, iz)
-        slot = table_insert(table_keys, table_values, key, size)
+        if key != last_key:  # neighbours along a laser stripe share voxels: skip the probe
+            slot = table_insert(table_keys, table_values, key, size)
+            last_key = key
         if slot == size:
             voxel_keys[slot] = key
             counts[slot] = 0.0

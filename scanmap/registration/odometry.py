@@ -1,10 +1,10 @@
 """Scan-to-map odometry: register each new scan against a local map of the previous ones.
 
 Per scan: predict the pose (odometry increment corrected for the scale and heading
-drift measured so far, else constant velocity), prepare the
-scan (filter, de-skew with the scan's own motion, downsample), register it against the
-local map with the prediction as guess and weighted prior, then, if it registered, add
-its points to the map and forget what is now far. A failed scan keeps the predicted
+drift measured so far, else constant velocity), prepare the scan (filter, de-skew with
+the scan's own motion, downsample), register it against the local map with the
+prediction as guess and weighted prior, then, if it registered, add its points to the
+map and forget what is now far. A failed scan keeps the predicted
 pose and stays out of the map; after `restart_after` failures in a row the map restarts.
 
 Float precision: poses may be kilometres from the map origin. Everything inside is
@@ -95,10 +95,11 @@ class ScanOdometry:
             if odometry.shape != (4, 4) or not np.isfinite(odometry).all():
                 raise RegistrationError(f"odometry: expected a finite 4x4 pose, got shape "
                                         f"{odometry.shape}")
+        if not self._local:
+            self.origin = self._snap(self.initial_pose[:3, 3])
         prior = self._predict(stamp, odometry)
         source = prepare_source(points, self.config, range_sigma, times, scan_motion)
         if not self._local:
-            self.origin = self._snap(self.initial_pose[:3, 3])
             result = RegistrationResult(pose=prior.pose, covariance=np.zeros((6, 6)),
                                         status=Status.INITIALISED, num_points=len(source),
                                         message="first scan: the map starts here")
@@ -122,7 +123,7 @@ class ScanOdometry:
         """Guess and prior for the scan at `stamp` (map-local)."""
         if not self._local:
             pose = self.initial_pose.copy()
-            pose[:3, 3] -= self._snap(pose[:3, 3])
+            pose[:3, 3] -= self.origin
             return Prior(pose, np.eye(6) * _UNKNOWN_SIGMA ** 2)
         last = self._local[-1]
         if odometry is not None and self._odometry is not None:
@@ -164,8 +165,7 @@ class ScanOdometry:
         self._odometry = odometry
 
     def _insert(self, pose: np.ndarray, source: Source) -> None:
-        self.local_map.insert(source.cloud @ pose[:3, :3].T + pose[:3, 3], len(self._local) + 1,
-                              source.cloud_variance)
+        self.local_map.insert(source.cloud, len(self._local) + 1, source.cloud_variance, pose)
         self.local_map.forget_far(pose[:3, 3])
 
 

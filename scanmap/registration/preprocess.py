@@ -93,6 +93,8 @@ def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, mi
     cells = np.empty((n, 3), dtype=np.int64)
     kept = 0
     voxels = 0
+    last_key = -1
+    slot = -1
     last_s = 0.0
     m = motion_at(0.0, twist)
     # Pass 1: filter, de-skew, find each point's voxel.
@@ -114,7 +116,10 @@ def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, mi
             math.floor(z * inv_voxel)
         if 2 * voxels >= keys.size:
             keys, values = grown(keys, values)
-        slot = table_insert(keys, values, voxel_key(ix, iy, iz), voxels)
+        key = voxel_key(ix, iy, iz)
+        if key != last_key:  # neighbours along a laser stripe share voxels: skip the probe
+            slot = table_insert(keys, values, key, voxels)
+            last_key = key
         if slot == voxels:
             cells[slot, 0], cells[slot, 1], cells[slot, 2] = ix, iy, iz
             voxels += 1

@@ -49,7 +49,8 @@ def coarse_search(source: Source, local_map: LocalMap, guess: np.ndarray,
     occupied[cells[:, 0], cells[:, 1]] = True
     grid = np.exp(-0.5 * distance_transform_edt(~occupied) ** 2)  # sigma: one cell
     shifts = math.ceil(config.search_radius / resolution)
-    yaw_step = resolution / config.max_range
+    yaw_step = resolution / max(float(np.sqrt(np.mean(np.sum(points[:, :2] ** 2, axis=1)))),
+                                resolution)  # a cell at the points' RMS range
     yaws = np.arange(-config.search_angle, config.search_angle + 0.5 * yaw_step, yaw_step)
     yaws = np.concatenate([[0.0], yaws])  # the guess's own yaw, exactly
     body = points @ guess[:3, :3].T  # rotated like the guess, relative to its position

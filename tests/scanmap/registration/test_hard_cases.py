@@ -15,7 +15,7 @@ from scanmap.registration import (
     prepare_source,
     register_scan,
 )
-from scanmap.registration.lie import between
+from scanmap.registration.lie import between, pose_exp
 from scanmap_driver.errors import RegistrationError
 from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose, wrap_angle
@@ -206,3 +206,26 @@ def test_identical_consecutive_scans_do_not_move():
     assert second.fitness > 0.9 and not second.degenerate
     motion = pose_to_se2(invert_pose(first.pose) @ second.pose)
     assert np.all(np.abs(motion) < [1e-3, 1e-3, 1e-3])
+
+
+def test_full_se3_mode_uses_the_floor_for_height_roll_and_pitch():
+    rng = np.random.default_rng(20)
+    config = RegistrationConfig(planar=False)
+    local_map = LocalMap(config.map_voxel_size, config.map_radius, config.map_max_count,
+                         config.min_plane_points, config.flatness)
+    truth = se2_to_pose(0.2, -0.1, 0.3)
+    for i, pose in enumerate([(0.0, 0.0, 0.2), (0.1, 0.0, 0.25)]):
+        scan = make_scan(office(), pose, rng)
+        cloud = prepare_source(scan.points, config, scan.range_sigma).cloud
+        t = se2_to_pose(*pose)
+        local_map.insert(cloud @ t[:3, :3].T + t[:3, 3], i + 1)
+    scan = make_scan(office(), pose_to_se2(truth), rng)
+    source = prepare_source(scan.points, config, scan.range_sigma)
+    assert (source.points[:, 2] < 0.05).sum() > 100  # the floor is kept
+    guess = truth @ pose_exp(np.array([0.02, -0.01, 0.03, 0.01, -0.015, 0.01]))
+    prior = Prior(guess, np.diag(np.square([0.05, 0.05, 0.05, 0.05, 0.05, 0.05])))
+    result = register_scan(source, local_map, prior, 0.1, config)
+    assert result.status is Status.OK and not result.degenerate
+    error = between(truth, result.pose)
+    assert np.all(np.abs(error[:3]) < 0.003) and np.all(np.abs(error[3:]) < 0.002)
+    assert np.all(np.diag(result.covariance) > 0)  # all six estimated
