@@ -24,7 +24,6 @@ FLOOR_MARGIN = 60.0  # m of floor beyond the scene on every side
 FACET_LENGTH = 0.02  # m: a cylinder gets a side per this much circumference
 DISK_HOLE = 0.008  # m: radius of the hole for the head's shaft
 NO_HIT = -1
-MAX_FRAME_LOOP = 64  # more poses than this: gather per row instead of a loop per pose
 
 
 @dataclass(frozen=True)
@@ -206,28 +205,21 @@ def rotate(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     return np.einsum("ij,kj->ik", vectors, rotation)
 
 
+@njit(cache=True, nogil=True)
 def transform_per_frame(poses: np.ndarray, frame: np.ndarray, vectors: np.ndarray,
                         translate: bool) -> np.ndarray:
     """Apply pose `poses[frame[i]]` (F, 4, 4) to row i of `vectors` (N, 3).
 
-    translate=False rotates directions only. Loops over frames with dense products.
+    translate=False rotates directions only.
     """
-    if poses.shape[0] > MAX_FRAME_LOOP:
-        out = np.einsum("nij,nj->ni", poses[frame, :3, :3], vectors)
-        return out + poses[frame, :3, 3] if translate else out
-    order = None if np.all(frame[1:] >= frame[:-1]) else np.argsort(frame, kind="stable")
-    ordered = vectors if order is None else vectors[order]
-    bounds = np.searchsorted(frame if order is None else frame[order],
-                             np.arange(poses.shape[0] + 1))
     out = np.empty((vectors.shape[0], 3))
-    for f in range(poses.shape[0]):
-        a, b = bounds[f], bounds[f + 1]
-        if b > a:
-            out[a:b] = rotate(ordered[a:b], poses[f, :3, :3])
+    for i in range(vectors.shape[0]):
+        pose = poses[frame[i]]
+        x, y, z = vectors[i, 0], vectors[i, 1], vectors[i, 2]
+        for k in range(3):
+            out[i, k] = pose[k, 0] * x + pose[k, 1] * y + pose[k, 2] * z
             if translate:
-                out[a:b] += poses[f, :3, 3]
-    if order is not None:
-        out[order] = out.copy()
+                out[i, k] += pose[k, 3]
     return out
 
 
@@ -250,7 +242,9 @@ class World:
         """Plane id and distance in the scene, and distance to the disk, for rays given in
         a frame that `map_from[frame]` and `base_from[frame]` (F, 4, 4) carry into `map`
         and `base_link` (rigidly, so distances are the same in all three)."""
-        origins = np.broadcast_to(np.asarray(origins, dtype=np.float64), directions.shape)
+        origins = np.ascontiguousarray(np.broadcast_to(np.asarray(origins, dtype=np.float64),
+                                                       directions.shape))
+        directions = np.ascontiguousarray(directions, dtype=np.float64)
         plane, t = self.world.cast(transform_per_frame(map_from, frame, origins, True),
                                    transform_per_frame(map_from, frame, directions, False),
                                    threads)

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.special import erf
 
 from scanmap_driver import reference_scanner
-from scanmap_driver.sim.geometry import NO_HIT, plane_distance
+from scanmap_driver.sim.geometry import NO_HIT, plane_distance, transform_per_frame
 from scanmap_driver.sim.hitmap import cast_rows, fill_between_rows
 from scanmap_driver.sim.laser_light import WINDOW, draw_stripes
 from scanmap_driver.sim.laser_stripe import camera_rays, project
@@ -220,3 +220,18 @@ def test_draw_stripes_matches_the_swept_gaussian(v0, sweep, sigma):
     # the drawn light's centroid is the sweep's middle
     centroid = (layer[:, 1] * rows).sum() / layer[:, 1].sum()
     assert centroid == pytest.approx(0.5 * (a + b), abs=0.02)
+
+
+def test_transform_per_frame_matches_numpy():
+    rng = np.random.default_rng(7)
+    poses = np.tile(np.eye(4), (5, 1, 1))
+    for pose in poses:
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        pose[:3, :3], pose[:3, 3] = q, rng.normal(size=3)
+    frame = rng.integers(0, 5, 300)
+    vectors = rng.normal(size=(300, 3))
+    rotated = np.einsum("nij,nj->ni", poses[frame, :3, :3], vectors)
+    np.testing.assert_allclose(transform_per_frame(poses, frame, vectors, False), rotated,
+                               rtol=1e-12)
+    np.testing.assert_allclose(transform_per_frame(poses, frame, vectors, True),
+                               rotated + poses[frame, :3, 3], rtol=1e-12)
