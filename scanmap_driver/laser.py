@@ -301,27 +301,34 @@ def _triangle(tri: np.ndarray, slot: np.ndarray, box: np.ndarray) -> None:
 
 @njit(cache=True, nogil=True)
 def _response(s: np.ndarray, tri: np.ndarray, left: np.ndarray, right: np.ndarray,
-              ws: np.int32, wc: np.int32) -> None:
+              ws: np.int16, wc: np.int16) -> None:
     for u in range(s.shape[0]):
         sides = max(left[u], right[u])
-        s[u] = np.int32(tri[u]) * ws - np.int32(sides) * wc
+        s[u] = tri[u] * ws - sides * wc
 
 
 @njit(cache=True, nogil=True)
 def _track(s: np.ndarray, best: np.ndarray, best_pos: np.ndarray, runs: np.ndarray,
-           p: np.int32, hi: np.int32, lo: np.int32) -> None:
-    """Keep the best response and its position; count hysteresis runs (runs = 2 count + state)."""
-    one = np.int32(1)
+           p: int, levels: np.ndarray) -> None:
+    """Keep the best response and its position; count hysteresis runs (runs = 2 count + state).
+
+    levels holds (start, end) of a run, 1, 0 and 0, in the arrays' integer type: every
+    operation stays in that type, which keeps both loops vectorised.
+    """
+    hi, lo, one, zero = levels[0], levels[1], levels[2], levels[3]
+    pos = levels[4] * zero + p
     for u in range(s.shape[0]):
         v = s[u]
         b = best[u]
-        best_pos[u] = p if v > b else best_pos[u]
-        best[u] = max(v, b)
+        best_pos[u] = pos if v > b else best_pos[u]
+        best[u] = v if v > b else b
+    for u in range(s.shape[0]):
+        v = s[u]
         r = runs[u]
         state = r & one
-        above = one if v >= hi else np.int32(0)
-        keep = one if v >= lo else np.int32(0)
-        runs[u] = ((r >> 1) + (above & (one - state))) * np.int32(2) + ((state | above) & keep)
+        above = one if v >= hi else zero
+        keep = one if v >= lo else zero
+        runs[u] = r - state + (above & (one - state)) * (one + one) + ((state | above) & keep)
 
 
 @njit(cache=True, nogil=True)
@@ -335,6 +342,8 @@ def ridge_kernel(e: np.ndarray, n_pos: int, pad: int, m: int, offset: int, side:
     L sums e[x-offset-side+1 .. x-offset] and R sums e[x+offset .. x+offset+side-1].
     T is a running sum of running box sums B(y) = e[y] + ... + e[y+m-1], so every filter
     costs O(1) per pixel. Runs start at >= thr_hi and end below thr_lo (hysteresis).
+    best, best_pos and count share one integer type, int16 when the response fits it
+    (twice the lanes per vector).
     """
     n_lines = e.shape[1]
     ring = np.zeros((m, n_lines), np.int16)
@@ -342,7 +351,8 @@ def ridge_kernel(e: np.ndarray, n_pos: int, pad: int, m: int, offset: int, side:
     box = np.zeros(n_lines, np.int16)
     left = np.zeros(n_lines, np.int16)
     right = np.zeros(n_lines, np.int16)
-    s = np.empty(n_lines, np.int32)
+    s = np.empty(n_lines, best.dtype)
+    levels = np.array([thr_hi, thr_lo, 1, 0, 0]).astype(best.dtype)
     x = pad
     for y in range(x - m + 1, x + 1):
         slot = ring[y % m]
@@ -354,11 +364,11 @@ def ridge_kernel(e: np.ndarray, n_pos: int, pad: int, m: int, offset: int, side:
         left += e[i]
     for i in range(x + offset, x + offset + side):
         right += e[i]
-    best[:] = np.iinfo(np.int32).min
+    best[:] = np.iinfo(best.dtype).min
     best_pos[:] = -1
     count[:] = 0
-    wc = np.int32(m * m)
-    ws = np.int32(side)
+    wc = s.dtype.type(m * m)
+    ws = s.dtype.type(side)
     for p in range(n_pos):
         x = pad + p
         if p > 0:
@@ -367,7 +377,7 @@ def ridge_kernel(e: np.ndarray, n_pos: int, pad: int, m: int, offset: int, side:
             _slide(left, e[x - offset], e[x - offset - side])
             _slide(right, e[x + offset + side - 1], e[x + offset - 1])
         _response(s, tri, left, right, ws, wc)
-        _track(s, best, best_pos, count, np.int32(p), np.int32(thr_hi), np.int32(thr_lo))
+        _track(s, best, best_pos, count, p, levels)
     for u in range(n_lines):
         count[u] >>= 1
 
@@ -499,30 +509,46 @@ def _gaussian_sums(g: np.ndarray, n: int, clipped: np.ndarray, amp: float, mu: f
 
 @njit(cache=True, nogil=True)
 def offset_lsq(g: np.ndarray, n: int, i0: int, clipped: np.ndarray, start: float,
-               sigma0: float) -> float:
+               sigma0: float, work: np.ndarray) -> float:
     """Least-squares Gaussian A exp(-(i-mu)^2 / 2 s^2) over the unclipped samples.
 
     Gauss-Newton from offset `start` and width `sigma0`, each step halved until the cost
-    falls. Returns mu - i0, NaN with too few samples on either side.
+    falls, until the full step would move mu by less than 1e-3 px. Returns mu - i0, NaN with too few
+    samples on either side. work: scratch of 18 floats.
     """
     used = 0
     left = False
     right = False
-    amp = 0.0
     for i in range(n):
         if not clipped[i]:
             used += 1
             left = left or i < i0 + start
             right = right or i > i0 + start
-        amp = max(amp, g[i])
-    if used < 4 or not (left and right) or amp <= 0.0:
+    if used < 4 or not (left and right):
         return np.nan
     mu = i0 + start
-    sig = sigma0
-    normal = np.empty(9)
-    trial = np.empty(9)
+    # the amplitude that fits best at this centre, for each of a few widths: a clipped top
+    # hides both, and a poor start stalls the fit
+    amp, sig, best = 0.0, sigma0, np.inf
+    for scale in (0.6, 0.8, 1.0, 1.25):
+        trial_sig = sigma0 * scale
+        num = 0.0
+        den = 0.0
+        for i in range(n):
+            if not clipped[i]:
+                e = math.exp(-0.5 * ((i - mu) / trial_sig) ** 2)
+                num += g[i] * e
+                den += e * e
+        trial_amp = num / den if den > 0.0 else 0.0
+        cost = _gaussian_sums(g, n, clipped, trial_amp, mu, trial_sig, work[:9])
+        if trial_amp > 0.0 and cost < best:
+            amp, sig, best = trial_amp, trial_sig, cost
+    if not amp > 0.0:
+        return np.nan
+    normal = work[:9]
+    trial = work[9:18]
     cost = _gaussian_sums(g, n, clipped, amp, mu, sig, normal)
-    for _ in range(8):
+    for _ in range(20):
         a11, a12, a13, a22, a23, a33, b1, b2, b3 = normal
         c1 = a22 * a33 - a23 * a23
         c2 = a12 * a33 - a23 * a13
@@ -535,7 +561,7 @@ def offset_lsq(g: np.ndarray, n: int, i0: int, clipped: np.ndarray, start: float
         ds = (a11 * (a22 * b3 - b2 * a23) - a12 * (a12 * b3 - b2 * a13) + b1 * c3) / det
         step = 1.0
         accepted = False
-        for _ in range(4):
+        for _ in range(10):
             na, nm, ns = amp + step * da, mu + step * dm, sig + step * ds
             if ns > 0.3 and abs(nm - i0) < 3.0:
                 new_cost = _gaussian_sums(g, n, clipped, na, nm, ns, trial)
@@ -545,15 +571,16 @@ def offset_lsq(g: np.ndarray, n: int, i0: int, clipped: np.ndarray, start: float
                     accepted = True
                     break
             step *= 0.5
-        if not accepted or abs(step * dm) < 1e-4:
+        if not accepted or abs(dm) < 1e-3:
             break
     return mu - i0
 
 
 @njit(cache=True, nogil=True, inline="always")
 def peak_offset(g: np.ndarray, n: int, i0: int, clipped: np.ndarray, estimator: int,
-                half: int) -> float:
-    """Subpixel offset of the peak of g[:n] from i0 with one estimator (NaN on failure).
+                half: int, work: np.ndarray) -> float:
+    """Subpixel offset of the peak of g[:n] from i0 with one estimator (NaN on failure);
+    work: scratch for the Gaussian fit (18 floats).
 
     With two or more clipped samples the flat top carries no position: the Gaussian fit
     uses the unclipped flanks and the other estimators the half-height edges.
@@ -578,7 +605,7 @@ def peak_offset(g: np.ndarray, n: int, i0: int, clipped: np.ndarray, estimator: 
         return np.nan
     width = half_max_width(g, n, i0)
     sigma0 = width / 2.3548 if math.isfinite(width) and width > 0.7 else 1.5
-    return offset_lsq(g, n, i0, clipped, start, sigma0)
+    return offset_lsq(g, n, i0, clipped, start, sigma0, work)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -654,6 +681,7 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
     vals = np.empty(2 * reach + 1)
     g = np.empty(2 * half + 1)
     clipped = np.zeros(2 * half + 1, np.bool_)
+    work = np.empty(18)
     for line in range(lo, hi):
         contrast[line] = best[line] * scale
         if best[line] < thr or best_pos[line] < 0:
@@ -681,7 +709,7 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
         for k in range(n_win):
             g[k] = vals[w0 + k] - bg
             clipped[k] = vals[w0 + k] >= sat
-        d = peak_offset(g, n_win, k0 - w0, clipped, estimator, half)
+        d = peak_offset(g, n_win, k0 - w0, clipped, estimator, half, work)
         if not math.isfinite(d) or abs(d) > half:
             d = 0.0
             flags[line] |= FIT_FAILED
@@ -776,7 +804,9 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserSettings | None = None)
             t = automatic_colour_threshold(flat, height, width, by_rows)
         else:
             t = float(s.colour_threshold)
-    e = np.zeros((n_pos + 2 * pad, n_lines), np.int16)
+    e = np.empty((n_pos + 2 * pad, n_lines), np.int16)
+    e[:pad] = 0
+    e[pad + n_pos:] = 0
     evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
                     np.uint8(s.saturation), pad, e)
     noise = evidence_noise(e, pad, n_pos, 4)
@@ -784,14 +814,18 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserSettings | None = None)
                  else float(s.threshold))
     unit = m * m * side
     noise_int = max(1, round(noise_thr * unit))
-    best = np.empty(n_lines, np.int32)
-    best_pos = np.empty(n_lines, np.int32)
-    count = np.empty(n_lines, np.int32)
-    ridge_kernel(e, n_pos, pad, m, offset, side, noise_int, noise_int // 2, best, best_pos,
-                 count)
+    small = 2 * 255 * unit < 2**15 and n_pos < 2**15
+    kind = np.int16 if small else np.int32
+    best = np.empty(n_lines, kind)
+    best_pos = np.empty(n_lines, kind)
+    count = np.empty(n_lines, kind)
+    ridge_kernel(e, n_pos, pad, m, offset, side, min(noise_int, 2**15 - 1),
+                 min(noise_int // 2, 2**15 - 1), best, best_pos, count)
     thr = noise_thr
     if s.threshold == "auto" and hi > lo:
-        thr = max(thr, s.relative_threshold * float(np.percentile(best[lo:hi], 75)) / unit)
+        rank = (3 * (hi - lo - 1)) // 4
+        typical = float(np.partition(best[lo:hi], rank)[rank])
+        thr = max(thr, s.relative_threshold * typical / unit)
     thr_int = max(1, round(thr * unit))
     peak = np.full(n_lines, np.nan)
     strength = np.full(n_lines, np.nan, np.float32)

@@ -122,13 +122,21 @@ def disk_points(model: ScannerModel, heading: float, step: float = 6e-5,
     return base, np.asarray(values, dtype=np.float64)
 
 
+def srgb(linear: np.ndarray) -> np.ndarray:
+    """sRGB encoding (0..1) of linear light (0..1), as a webcam delivers it."""
+    x = np.clip(linear, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
 def disk_frame(model: ScannerModel, heading: float, rng: np.random.Generator, *,
-               blur: float = 4.0, noise: float = 2.0, dark: float = 40.0, light: float = 200.0,
-               background: float = 90.0, jpeg: int | None = None,
+               blur: float = 4.0, noise: float = 2.0, dark: float = 0.03, light: float = 0.6,
+               background: float = 0.1, jpeg: int | None = None,
                texture: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """A BGR frame showing the encoder disk at `heading`, rendered forward (see module doc).
 
-    Pixels that see no part of the ring show a flat `background`; texture: see disk_points.
+    dark, light, background: linear radiance (0..1) of the black and white print and of
+    what lies beyond the ring; blurred in linear light, then sRGB-encoded, noised (grey
+    levels) and quantised. texture: see disk_points.
     """
     cam = model.camera
     base, values = disk_points(model, heading, texture=texture)
@@ -146,7 +154,7 @@ def disk_frame(model: ScannerModel, heading: float, rng: np.random.Generator, *,
     img = img.reshape(cam.height, cam.width)
     if blur > 0:
         img = cv2.GaussianBlur(img, (0, 0), blur)
-    img = img[:, :, None] * np.array([0.95, 1.0, 1.05])[None, None, :]
+    img = 255.0 * srgb(img[:, :, None] * np.array([0.95, 1.0, 1.05])[None, None, :])
     img += rng.normal(0.0, noise, img.shape)
     frame = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     if jpeg is not None:

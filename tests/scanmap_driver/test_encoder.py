@@ -24,7 +24,7 @@ from scanmap_driver.encoder import (
 from scanmap_driver.encoder_disk import EncoderDisk
 from scanmap_driver.errors import ScanError
 from scanmap_driver.scanner_model import CameraIntrinsics, HeadMount, reference_scanner
-from tests.scanmap_driver.synthetic_frames import disk_frame, project
+from tests.scanmap_driver.synthetic_frames import disk_frame, project, srgb
 
 MODEL = reference_scanner()
 
@@ -68,8 +68,11 @@ def test_ring_profile_matches_bincount():
     geo = ring_geometry(MODEL, EncoderSettings())
     grey = image.reshape(-1, 3).astype(float).mean(axis=1)[geo.pixels]
     expected = np.bincount(geo.bins, weights=grey) / geo.bin_count
-    got = encoder.ring_profile(image.reshape(-1), geo.pixels, geo.bins, geo.bin_count)
+    got = encoder.ring_profile(image.reshape(-1), geo.pixels, geo.bins, geo.bin_count, False)
     assert np.allclose(got, expected, atol=1e-9)
+    linear = encoder.ring_profile(image.reshape(-1), geo.pixels, geo.bins, geo.bin_count, True)
+    # the sRGB decoding of OpenCV's colour conversion to linear light, as a peer
+    assert np.allclose(srgb(linear / 255.0) * 255.0, expected, atol=1e-6)
 
 
 @settings(max_examples=25, deadline=None)
@@ -109,6 +112,13 @@ def test_code_levels_and_edge_headings_on_a_rendered_profile():
     assert np.abs(found[:n] - theta).max() < math.radians(0.01)
 
 
+def test_correlate_matches_numpy():
+    rng = np.random.default_rng(10)
+    templates = rng.normal(size=(40, 256))
+    profile = rng.normal(size=40)
+    assert np.allclose(encoder.correlate(templates, profile), profile @ templates)
+
+
 def test_correlation_peak_matches_numpy():
     rng = np.random.default_rng(2)
     scores = rng.uniform(-1, 1, 256)
@@ -139,7 +149,7 @@ def test_heading_rms_under_0_05_deg():
 
 @pytest.mark.parametrize("render", [
     dict(blur=10.0, noise=6.0), dict(blur=6.0, jpeg=75), dict(blur=12.0, noise=4.0, jpeg=80),
-    dict(dark=90.0, light=140.0, noise=4.0)])
+    dict(dark=0.1, light=0.26, noise=4.0)])
 def test_heading_under_blur_noise_mjpg_and_low_contrast(render):
     rng = np.random.default_rng(4)
     headings = rng.uniform(-math.pi, math.pi, 6)

@@ -68,6 +68,9 @@ def blais_rioux_reference(g: np.ndarray, i0: int) -> float:
     return idx[k] + h[k] / (h[k] - h[k + 1]) - i0
 
 
+WORK = np.empty(18)  # scratch of the Gaussian fit
+
+
 def gaussian(x, amp, mu, sig):
     return amp * np.exp(-0.5 * ((x - mu) / sig) ** 2)
 
@@ -119,6 +122,18 @@ def isolated_reference(peak: np.ndarray, support: int, jump: float) -> np.ndarra
     return keep
 
 
+@pytest.mark.parametrize("by_rows", [False, True])
+def test_red_statistics_and_colour_threshold_match_numpy(by_rows):
+    rng = np.random.default_rng(6)
+    image = rng.integers(0, 256, (30, 41, 3), dtype=np.uint8)
+    red = image[:, :, 2].astype(float)
+    mean, std, level = laser.red_statistics(image.reshape(-1), 30, 41, by_rows)
+    assert mean == pytest.approx(red.mean()) and std == pytest.approx(red.std())
+    assert level == np.median(red.max(axis=1 if by_rows else 0))
+    t = laser.automatic_colour_threshold(image.reshape(-1), 30, 41, by_rows)
+    assert t == pytest.approx(np.clip(max(0.5 * (mean + level), mean + 3 * std), 40, 250))
+
+
 def test_drop_isolated_example():
     peak = np.array([10.0, 11.0, 12.0, np.nan, 50.0, 13.0, 14.0, 15.0, 16.0])
     flags = np.zeros(9, np.uint8)
@@ -154,8 +169,8 @@ def test_estimators_on_sampled_gaussian(offset, sigma):
     assert laser.offset_blais_rioux(g, 11, 5) == pytest.approx(
         blais_rioux_reference(g, 5), abs=1e-12)
     assert laser.offset_blais_rioux(g, 11, 5) == pytest.approx(offset, abs=0.06)
-    lsq = laser.peak_offset(g, 11, 5, clipped, laser.EST_LSQ, 5)
-    assert lsq == pytest.approx(offset, abs=1e-3)  # stops at steps below 1e-4 px
+    lsq = laser.peak_offset(g, 11, 5, clipped, laser.EST_LSQ, 5, WORK)
+    assert lsq == pytest.approx(offset, abs=2e-3)  # stops at steps below 1e-3 px
     com = laser.offset_com(g, 11, 5, 5)
     assert com == pytest.approx(np.sum(g * (x - 5)) / g.sum(), abs=1e-12)
 
@@ -170,12 +185,12 @@ def test_lsq_on_clipped_noisy_peak_agrees_with_scipy(offset, level, seed):
     top = level * 100.0
     clipped = g >= top
     g = np.minimum(g, top)
-    ours = laser.peak_offset(g, 13, 6, clipped, laser.EST_LSQ, 6)
+    ours = laser.peak_offset(g, 13, 6, clipped, laser.EST_LSQ, 6, WORK)
     keep = ~clipped
     popt, _ = curve_fit(gaussian, x[keep], g[keep], p0=(100.0, 6 + offset, 1.8))
-    assert ours == pytest.approx(popt[1] - 6, abs=3e-3)  # both stop near 1e-4 px steps
+    assert ours == pytest.approx(popt[1] - 6, abs=0.02)  # ill-conditioned when clipped
     if clipped.sum() >= 2:  # the others use the half-height edges of the flat top
-        edges = laser.peak_offset(g, 13, 6, clipped, laser.EST_BLAIS_RIOUX, 6)
+        edges = laser.peak_offset(g, 13, 6, clipped, laser.EST_BLAIS_RIOUX, 6, WORK)
         assert edges == pytest.approx(offset, abs=0.25)
 
 
@@ -185,8 +200,8 @@ def test_estimators_are_shift_equivariant():
     g = gaussian(x, 80.0, 9.3, 1.5) + rng.normal(0, 2, 20)
     clipped = np.zeros(20, bool)
     for est in range(5):
-        a = laser.peak_offset(g, 20, 9, clipped, est, 5) + 9
-        b = laser.peak_offset(g[1:], 19, 8, clipped, est, 5) + 8 + 1
+        a = laser.peak_offset(g, 20, 9, clipped, est, 5, WORK) + 9
+        b = laser.peak_offset(g[1:], 19, 8, clipped, est, 5, WORK) + 8 + 1
         assert a == pytest.approx(b, abs=1e-9)
 
 
