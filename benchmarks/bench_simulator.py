@@ -83,17 +83,18 @@ def _hit_map_row(model) -> dict:
     plan = plan_scans(scene, model, seed=1, count=1)[0]
     pose, _ = head_poses(model, plan.base_poses_at(plan.frame_times[20]),
                          plan.frame_headings[20:21])
-    raycaster = renderer.world.world
-    sampled = hit_map(raycaster, model, pose[0], renderer.hit_step, 1)
-    full = hit_map(raycaster, model, pose[0], 1, 1)
+    raycaster, rays = renderer.world.world, renderer.rays
+    sampled = hit_map(raycaster, rays.centre, rays.directions, pose[0], renderer.hit_step, 1)
+    full = hit_map(raycaster, rays.centre, rays.directions, pose[0], 1, 1)
     mismatch = float(np.mean(np.abs(sampled.t - full.t) > 1e-9 * (1 + full.t)))
     return {"stage": "simulator", "method": "sampled ray casting (rows every "
             f"{renderer.hit_step}, planes fill the rest)", "settings": "office, 307,200 rays",
-            "median_s": median_time(lambda: hit_map(raycaster, model, pose[0],
-                                                    renderer.hit_step, 1), repeats=10),
+            "median_s": median_time(lambda: hit_map(raycaster, rays.centre, rays.directions,
+                                                    pose[0], renderer.hit_step, 1), repeats=10),
             "error": mismatch, "error_unit": "fraction of pixels differing from a full cast",
             "peers": {"Open3D full cast": {
-                "median_s": median_time(lambda: hit_map(raycaster, model, pose[0], 1, 1),
+                "median_s": median_time(lambda: hit_map(raycaster, rays.centre,
+                                                        rays.directions, pose[0], 1, 1),
                                         repeats=5), "error": 0.0}}}
 
 

@@ -1,6 +1,6 @@
 """The scene seen by every pixel of a frame, ray cast at a fraction of the cost.
 
-Casting all 307,200 rays of a frame dominates the render time. Rows are cast every
+Casting all 307,200 rays of a frame would dominate the render time. Rows are cast every
 `step` rows only; between two cast rows of a column that hit the same plane, the rows in
 between hit that plane too (faces are convex, and the rays of a column fan between the
 two hits), so their distances are computed exactly from the plane in float64. Only the
@@ -16,7 +16,6 @@ import numpy as np
 from numba import njit
 
 from .geometry import NO_HIT, Raycaster, rotate
-from .laser_stripe import camera_rays
 
 
 @dataclass(frozen=True)
@@ -65,24 +64,24 @@ def cast_rows(height: int, step: int) -> np.ndarray:
     return np.unique(np.append(np.arange(0, height, step), height - 1))
 
 
-def hit_map(raycaster: Raycaster, model, pose_map_head: np.ndarray, step: int = 3,
-            threads: int = 0) -> HitMap:
-    """The scene's plane and distance for every pixel of a camera at T_map_head."""
-    rays = camera_rays(model)
-    height, width = rays.laser_t.shape
+def hit_map(raycaster: Raycaster, centre: np.ndarray, directions: np.ndarray,
+            pose_map_head: np.ndarray, step: int = 4, threads: int = 0) -> HitMap:
+    """The scene's plane and distance along a grid of rays (R, W, 3) in `head` from the
+    camera `centre`, for the camera at T_map_head: every pixel, or every n-th row of them.
+    """
+    rows_total, width = directions.shape[:2]
     rotation, shift = pose_map_head[:3, :3], pose_map_head[:3, 3]
-    origin = rotation @ rays.centre + shift
-    plane = np.empty((height, width), dtype=np.int32)
-    t = np.empty((height, width))
-    rows = cast_rows(height, step)
-    p, d = raycaster.cast(origin, rotate(rays.directions[rows].reshape(-1, 3), rotation),
-                          threads)
+    origin = rotation @ centre + shift
+    plane = np.empty((rows_total, width), dtype=np.int32)
+    t = np.empty((rows_total, width))
+    rows = cast_rows(rows_total, step)
+    p, d = raycaster.cast(origin, rotate(directions[rows].reshape(-1, 3), rotation), threads)
     plane[rows], t[rows] = p.reshape(-1, width), d.reshape(-1, width)
     planes = raycaster.planes.planes
     planes_head = np.column_stack([rotate(planes[:, :3], rotation.T),
                                    planes[:, 3] - planes[:, :3] @ shift])
-    todo = fill_between_rows(plane, t, rows, planes_head, rays.centre, rays.directions)
+    todo = fill_between_rows(plane, t, rows, planes_head, centre, directions)
     if todo.any():
-        p, d = raycaster.cast(origin, rotate(rays.directions[todo], rotation), threads)
+        p, d = raycaster.cast(origin, rotate(directions[todo], rotation), threads)
         plane[todo], t[todo] = p, d
     return HitMap(plane, t)

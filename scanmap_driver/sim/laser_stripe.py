@@ -225,25 +225,27 @@ def _unique(frame, u, v, plane):
 
 
 def points_from_hit_map(world: World, model: ScannerModel, plane_map: np.ndarray,
-                        t_map: np.ndarray, base_pose: np.ndarray, heading: float,
-                        threads: int = 0) -> StripePoints:
-    """Stripe points of one rendered frame, from its scene hit map (plane ids, distances)."""
-    laser_t = camera_rays(model).laser_t
+                        t_map: np.ndarray, rows: np.ndarray, base_pose: np.ndarray,
+                        heading: float, threads: int = 0) -> StripePoints:
+    """Stripe points of one rendered frame from its scene hit map: plane ids and distances
+    (R, W) of the image rows `rows` (all rows, or every n-th)."""
+    laser_t = camera_rays(model).laser_t[rows]
     valid = (plane_map != NO_HIT) & np.isfinite(laser_t)
     above = t_map >= laser_t
     # A sign change of depth against the laser plane's depth, or an edge between two
     # planes (the stripe may end within half a pixel of a silhouette).
     change = valid[:-1] & valid[1:] & ((above[:-1] != above[1:])
                                        | (plane_map[:-1] != plane_map[1:]))
-    rows, cols = np.nonzero(change)
-    first, second = plane_map[rows, cols], plane_map[rows + 1, cols]
+    index, cols = np.nonzero(change)
+    first, second = plane_map[index, cols], plane_map[index + 1, cols]
     other = first != second
     cols = np.concatenate([cols, cols[other]])
-    rows = np.concatenate([rows, rows[other]])
+    index = np.concatenate([index, index[other]])
     plane = np.concatenate([first, second[other]])
     return _solve_and_verify(world, model, np.zeros(cols.size, dtype=np.int64),
-                             cols.astype(np.float64), rows.astype(np.float64),
-                             rows + 1.0, plane, base_pose[None], np.array([heading]), threads)
+                             cols.astype(np.float64), rows[index].astype(np.float64),
+                             rows[index + 1].astype(np.float64), plane, base_pose[None],
+                             np.array([heading]), threads)
 
 
 def _solve_and_verify(world, model, frame, u, v0, v1, plane, base_poses, headings, threads):

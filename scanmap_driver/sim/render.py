@@ -24,7 +24,7 @@ import numpy as np
 from ..scanner_model import ScannerModel
 from .camera_effects import CameraSettings, encode_mjpg, expose
 from .geometry import World, disk_distance, rotate
-from .hitmap import hit_map
+from .hitmap import HitMap, hit_map
 from .laser_light import defocus_diameter, draw_stripes, speckle, stripe_sigma
 from .laser_stripe import (
     StripePoints,
@@ -108,19 +108,27 @@ class RenderedFrame:
 
 @dataclass
 class Renderer:
-    """Renders frames of one scene for one scanner model."""
+    """Renders frames of one scene for one scanner model.
+
+    hit_step: rows between directly cast rows (`hitmap`); scene_step: the scene (not the
+    laser, the disk or the truth) is shaded on every scene_step-th image row and
+    interpolated between them, which the motion blur along the rows hides.
+    """
 
     scene: Scene
     model: ScannerModel
     camera: CameraSettings = field(default_factory=CameraSettings)
     laser: LaserAppearance = field(default_factory=LaserAppearance)
     hit_step: int = 4
+    scene_step: int = 2
     threads: int = 1
 
     def __post_init__(self) -> None:
         self.world = World(self.scene, self.model.encoder)
         self.rays = camera_rays(self.model)
         self._disk_columns = self._find_disk_columns()
+        self._scene_rows = np.arange(0, self.model.camera.height, self.scene_step)
+        self._scene_directions = np.ascontiguousarray(self.rays.directions[self._scene_rows])
 
     def _find_disk_columns(self) -> int:
         """First image column where the disk (or its blur) can appear at any heading."""
@@ -162,32 +170,38 @@ class Renderer:
         map_head, base_head = head_poses(model, base[None], np.array([heading]))
         map_head, base_head = map_head[0], base_head[0]
         row_time, offsets = self._offsets(plan, time)
-        hits = hit_map(self.world.world, model, map_head, self.hit_step, self.threads)
-        radiance = shade_scene(hits.plane, hits.t, rays.directions, rays.centre,
+        rows, directions = self._scene_rows, self._scene_directions
+        hits = hit_map(self.world.world, rays.centre, directions, map_head, self.hit_step,
+                       self.threads)
+        radiance = shade_scene(hits.plane, hits.t, directions, rays.centre,
                                map_head[:3, :3], map_head[:3, 3],
                                self.world.world.planes.planes[:, :3], self.world.plane_axes,
                                self.world.plane_albedo,
                                LIGHT_DIRECTION, self.scene.ambient * SCENE_GAIN,
                                self.scene.texture)
-        radiance = blur_along_flow(radiance, self._flow(hits.t), offsets)
-        stripe = self._stripe(plan, hits, base, heading, row_time)
+        flow = self._flow(hits.t, directions)
+        flow[:, :, 1] /= self.scene_step  # in rows of the coarse grid
+        radiance = between_rows(blur_along_flow(radiance, flow, offsets[rows]), rows,
+                                model.camera.height)
+        stripe = self._stripe(plan, hits, rows, base, heading, row_time)
         laser = self._laser_layer(plan, stripe, base, row_time, rng)
         radiance += laser[:, :, None] * np.array(self.laser.crosstalk, dtype=np.float32)
-        covered = self._add_disk(radiance, hits.t, base_head, offsets)
+        scene_t = np.repeat(hits.t, self.scene_step, axis=0)[:model.camera.height]
+        covered = self._add_disk(radiance, scene_t, base_head, offsets)
         mask = (laser * self.camera.scale >= self.laser.mask_threshold) & (covered < 0.5)
         truth = FrameTruth(time, heading, base, stripe, stripe.strongest_per_column(), mask)
         return FrameLight(radiance, laser, covered, truth)
 
-    def _flow(self, t: np.ndarray, columns: slice = slice(None)) -> np.ndarray:
+    def _flow(self, t: np.ndarray, directions: np.ndarray) -> np.ndarray:
         cam = self.model.camera
-        return rotation_flow(t, self.rays.directions[:, columns], self.rays.centre,
+        return rotation_flow(t, directions, self.rays.centre,
                              self.model.camera_mount.rotation, cam.fx, cam.fy)
 
-    def _stripe(self, plan: ScanPlan, hits, base: np.ndarray, heading: float,
-                row_time: np.ndarray) -> StripePoints:
+    def _stripe(self, plan: ScanPlan, hits: HitMap, rows: np.ndarray, base: np.ndarray,
+                heading: float, row_time: np.ndarray) -> StripePoints:
         """Every visible stripe point; under a rolling shutter, each at its row's heading."""
-        points = points_from_hit_map(self.world, self.model, hits.plane, hits.t, base, heading,
-                                     self.threads)
+        points = points_from_hit_map(self.world, self.model, hits.plane, hits.t, rows, base,
+                                     heading, self.threads)
         if self.camera.rolling_shutter == 0.0 or len(points) == 0:
             return points
         bases = np.repeat(base[None], len(points), axis=0)
@@ -241,7 +255,8 @@ class Renderer:
         layer[on_disk, 0] = DISK_LIGHT * disk_albedo(self.model.encoder, points)
         layer[on_disk, 1] = 1.0
         depth_t = np.where(on_disk, t, scene_t[:, first:])
-        layer = blur_along_flow(layer, self._flow(depth_t, slice(first, None)), offsets)
+        layer = blur_along_flow(layer, self._flow(depth_t, self.rays.directions[:, first:]),
+                                offsets)
         depth = float(np.median(t[on_disk]))
         diameter = float(defocus_diameter(depth, self.model.camera.fx, self.camera.aperture,
                                           self.camera.focus_distance))
@@ -252,6 +267,23 @@ class Renderer:
         region += layer[:, :, 0:1]
         coverage[:, first:] = alpha[:, :, 0]
         return coverage
+
+
+def between_rows(image: np.ndarray, rows: np.ndarray, height: int) -> np.ndarray:
+    """(height, W, C) image from its rows `rows` (increasing), linear in between and
+    constant beyond the last."""
+    if rows.size == height:
+        return image
+    full = np.empty((height, *image.shape[1:]), dtype=image.dtype)
+    below = np.clip(np.searchsorted(rows, np.arange(height), side="right") - 1, 0,
+                    rows.size - 1)
+    above = np.minimum(below + 1, rows.size - 1)
+    span = np.maximum(rows[above] - rows[below], 1)
+    weight = (np.clip(np.arange(height) - rows[below], 0, None) / span).astype(image.dtype)
+    weight = weight[:, None, None]
+    np.multiply(image[below], 1 - weight, out=full)
+    full += image[above] * weight
+    return full
 
 
 def pillbox(diameter: float) -> np.ndarray:
