@@ -26,7 +26,11 @@ def test_live_scan_matches_ground_truth_as_well_as_the_offline_path():
     assert result.coverage >= 2 * math.pi + math.radians(10)
     assert live["true_turn"] >= 2 * math.pi + math.radians(5)
     assert np.median(live["heading_error"]) < math.radians(0.5)
-    assert len(live["scan"]) > 0.7 * len(offline["scan"])
+    # frames a loaded machine could not render in time are dropped (and counted): compare
+    # points per frame
+    frames = len(result.frame_times)
+    assert frames >= 20 and frames + result.dropped_frames + result.overflow_frames >= 40
+    assert len(live["scan"]) / frames > 0.7 * len(offline["scan"]) / offline["frames"]
     for q in (50, 90):
         ours = np.nanpercentile(live["errors"], q)
         theirs = np.nanpercentile(offline["errors"], q)
