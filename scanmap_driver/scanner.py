@@ -9,9 +9,10 @@ The loop depends on small injected parts, so any camera, decoder and laser pipel
 in: a `Camera`, `decode_heading(frame) -> heading (rad) or None`, and a factory of
 `Assembler`s, which take a scan's frames one by one (returning each frame's heading) and
 build the `Scan` at the end: `assembly.ScanAssembler`, the offline path's own, so a live
-scan and a replayed recording give the same points. Without an assembler the loop only
-takes frames and headings (`scanmap record`). A grabber thread reads the camera all the
-time into a bounded buffer, so a slow consumer never blocks the camera.
+scan and its recording processed later (`scanmap process`) give the same points.
+Without an assembler the loop only takes frames and headings (`scanmap record`). A
+grabber thread reads the camera all the time into a bounded buffer, so a slow consumer
+never blocks the camera.
 
 Faults are handled, not hidden: a stall (headings stop advancing while the motor is
 driven), a camera that stops delivering, a motor controller that vanishes, a scan over
@@ -25,7 +26,6 @@ from __future__ import annotations
 import collections
 import logging
 import math
-import os
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 import numpy as np
 
 from .camera import Camera, Frame
-from .errors import DeviceError, RecordingError, ScanError
+from .errors import DeviceError, ScanError
 from .motor import MotorController
 from .scan import Scan
 from .scanner_model import ScannerModel
@@ -678,7 +678,7 @@ class ContinuousScanning:
         self.scanner.motor.stop_safely()
 
 
-# -- the real pipeline, recordings and replay ---------------------------------------------
+# -- the real pipeline and recordings ---------------------------------------------
 
 def encoder_headings(model: ScannerModel) -> HeadingDecoder:
     """The heading decoder of the encoder disk (`encoder.decode_heading`), each frame
@@ -726,30 +726,3 @@ def write_scan(writer: RecordingWriter, result: ScanResult, origin: float,
                 raise _Incomplete
     except _Incomplete:
         pass
-
-
-def replay_recording(path: str | os.PathLike[str],
-                     new_assembler: Callable[[ScannerModel], Assembler] | None = None
-                     ) -> Iterator[tuple[Scan, Any]]:
-    """The scans of a raw recording through the live scanner's pipeline: each scan's
-    frames, as a `VideoFileCamera` delivers them with the recorded times, go into a fresh
-    assembler (default `assembly.ScanAssembler` of the recording's scanner model)."""
-    from .camera import EndOfStream, VideoFileCamera
-    from .recording import Recording
-
-    recording = Recording.open(path)
-    if new_assembler is None:
-        from .assembly import ScanAssembler
-        new_assembler = ScanAssembler
-    for record in recording.scans:
-        assembler = new_assembler(recording.model)
-        with VideoFileCamera(record.video, timestamps=record.frame_times) as camera:
-            for taken in range(record.frame_times.size):
-                try:
-                    frame = camera.read()
-                except EndOfStream:
-                    raise RecordingError(
-                        f"{record.video}: the video ends after {taken} of "
-                        f"{record.frame_times.size} frames (truncated?)") from None
-                assembler.add_frame(frame.image, frame.timestamp)
-        yield assembler.finish(record.index, record.odom_start, record.odom_end)

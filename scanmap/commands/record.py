@@ -5,7 +5,7 @@
 The scanner turns and the encoder disk is decoded as in `scanmap scan` (to know when a
 turn is complete and to bring the head back), but frames are not turned into points:
 each scan's video keeps the webcam's JPEGs byte for byte, with frame times and the motor
-log (`scanmap_driver.recording`). Process it later with `scanmap scan --replay DIR`.
+log (`scanmap_driver.recording`). Process it later with `scanmap process DIR --out SCANS`.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "record", help="record raw scans (video, frame times, motor log) from the scanner",
         description="Drive the scanner and keep each scan as recorded, without processing; "
-                    "replay it later with `scanmap scan --replay`.")
+                    "process it later with `scanmap process`.")
     add_device_arguments(parser)
     parser.add_argument("--out", required=True, type=Path, metavar="DIR",
                         help="recording folder to write")

@@ -1,12 +1,12 @@
-"""`scanmap scan`: take scans with the scanner (webcam + motor controller), or replay a
-recording through the same pipeline.
+"""`scanmap scan`: take scans with the scanner (webcam + motor controller).
 
     scanmap scan --camera 0 --port /dev/ttyUSB0 [--out DIR] [--record DIR] [--continuous]
-    scanmap scan --replay RECORDING --out DIR
 
 Each scan is written as `DIR/scan_NNNN.npz`; `--record` also keeps the raw recording
-(the webcam's JPEGs byte for byte, frame times, motor log). A progress line shows the
+(the webcam's JPEGs byte for byte, frame times, motor log), which `scanmap process`
+turns into the same scans later (the same `ScanAssembler`). A progress line shows the
 heading swept, frames and drops. Ctrl-C brakes the motor and keeps what was taken.
+`--simulate SCENE` runs it all without hardware.
 """
 
 from __future__ import annotations
@@ -56,16 +56,15 @@ def add_device_arguments(parser: argparse.ArgumentParser) -> None:
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `scan`."""
     parser = subparsers.add_parser(
-        "scan", help="take 360 deg scans with the scanner, or replay a recording",
+        "scan", help="take 360 deg scans with the scanner (webcam + motor controller)",
         description="Drive the scanner (webcam and motor controller) and write each 360 deg "
-                    "scan as .npz; or replay a raw recording through the same pipeline.")
+                    "scan as .npz, and/or keep the raw recording (process it later with "
+                    "`scanmap process`).")
     add_device_arguments(parser)
     parser.add_argument("--out", type=Path, metavar="DIR", help="write scan_NNNN.npz here")
     parser.add_argument("--record", type=Path, metavar="DIR",
                         help="also keep the raw recording in DIR")
     parser.add_argument("--ply", action="store_true", help="also write scan_NNNN.ply")
-    parser.add_argument("--replay", type=Path, metavar="RECORDING",
-                        help="process a recording folder instead of the live scanner")
     parser.set_defaults(func=_scan)
 
 
@@ -104,18 +103,6 @@ class ProgressLine:
 
 
 def _scan(args: argparse.Namespace) -> int:
-    if args.replay is not None:
-        from scanmap_driver.scanner import replay_recording
-
-        count = 0
-        for scan, summary in replay_recording(args.replay):
-            _save(scan, args)
-            print(f"scan {scan.index}: {len(scan)} points from {summary.frames} frames, "
-                  f"{summary.headings_covered_deg:.0f} deg covered, "
-                  f"{summary.unreadable_frames} with the encoder unreadable", file=sys.stderr)
-            count += 1
-        print(f"replayed {count} scans from {args.replay}")
-        return 0
     if args.out is None and args.record is None:
         raise SystemExit("scanmap scan: give --out DIR and/or --record DIR")
     return run_device(args, process=True, on_scan=lambda r: _save(r.scan, args))

@@ -1,6 +1,6 @@
 """`scanmap scan` end to end without hardware: `--simulate` drives the simulated firmware
 on a pseudo-terminal and a rendered webcam; `--record` keeps the raw recording; and
-`--replay` of that recording through the same pipeline gives the same scan."""
+`scanmap process` of that recording (the same assembler, offline) gives the same scan."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def test_simulated_scan_is_recorded_and_replays_to_the_same_points(tmp_path, cap
     assert [e["command"] for e in record.motor_log][:2] == ["status", "run"]
     assert np.ptp(np.unwrap(live.heading)) >= 2 * math.pi
 
-    assert main(["scan", "--replay", str(tmp_path / "rec"),
+    assert main(["process", str(tmp_path / "rec"), "--no-ply",
                  "--out", str(tmp_path / "replayed")]) == 0
     replayed = Scan.load(tmp_path / "replayed" / "scan_0000.npz")
     assert len(replayed) == len(live)

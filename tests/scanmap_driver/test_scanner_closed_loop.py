@@ -2,7 +2,7 @@
 while a simulated webcam renders the office scene for the head's true motion; frames go
 through the real pipeline (laser extraction, encoder decoding, triangulation in
 `assembly.ScanAssembler`). The scan must match the simulator's ground truth as well as
-the offline path does (a simulated recording of the same place replayed through the same
+the offline path does (a simulated recording of the same place processed by the same
 assembler). The measurement is `benchmarks.bench_scanner_device.closed_loop`.
 
 Rendering takes 0.1-0.2 s per frame here, so the simulated world runs 5 times slower than

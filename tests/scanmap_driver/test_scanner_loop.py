@@ -1,6 +1,5 @@
 """The scanning loop against the simulated firmware on a pseudo-terminal and a camera that
-renders the head's true angle (tests/scanmap_driver/sim_rig.py); its recordings and
-their replay.
+renders the head's true angle (tests/scanmap_driver/sim_rig.py), and its recordings.
 
 Truth is the motor model's own head angle over time. Each fault has a test showing the
 motor stopped (the firmware's state, and the head's true speed), the partial data kept,
@@ -28,7 +27,6 @@ from scanmap_driver.scanner import (
     ScanFailed,
     ScanResult,
     ScanSettings,
-    replay_recording,
     write_scan,
 )
 from scanmap_driver.sim.motor_model import MotorParameters
@@ -296,7 +294,7 @@ def test_tracker_accepts_a_real_jump_after_three_agreeing_headings():
     assert wrapped(tracker.heading_now() - 1.8) == pytest.approx(0.0, abs=1e-12)
 
 
-# -- recording and replay ----------------------------------------------------------------------
+# -- recording ----------------------------------------------------------------------
 
 def recorded_result(fault=None, frames=6):
     """A ScanResult as the loop makes it, with full-size MJPG frames of a rendered camera."""
@@ -326,26 +324,3 @@ def test_write_scan_keeps_the_cameras_jpegs_times_and_motor_log(tmp_path):
     assert [e["command"] for e in first.motor_log] == ["status", "run", "brake"]
     assert first.motor_log[1]["duty"] == 0.72 and first.motor_log[0]["state"] == "STOP"
     assert first.complete and not second.complete
-
-
-def test_replay_feeds_the_recorded_frames_and_times_to_the_assembler(tmp_path):
-    result = recorded_result()
-    writer = RecordingWriter(tmp_path / "rec", reference_scanner(), source="camera")
-    write_scan(writer, result, origin=0.0)
-    seen = []
-
-    class Collector:
-        def __init__(self, model):
-            self.model = model
-
-        def add_frame(self, image, timestamp):
-            seen.append((image, timestamp))
-            return 0.0
-
-        def finish(self, index, odom_start, odom_end):
-            return Scan.empty(index=index), len(seen)
-
-    (scan, summary), = replay_recording(tmp_path / "rec", Collector)
-    assert summary == len(result.frames) and scan.index == 0
-    for (image, t), frame in zip(seen, result.frames, strict=True):
-        assert t == pytest.approx(frame.timestamp) and np.array_equal(image, frame.image)
