@@ -74,6 +74,7 @@ def frame_errors(scan: Scan, truth_points) -> np.ndarray:
 def offline_scan(folder: Path, scene, model, seed: int) -> dict:
     """Simulate a one-scan recording and process it: the scan, its point errors, timing."""
     simulate_recording(scene, folder, model, seed=seed, scans=1, workers=1)
+    list(recording_scans(Recording.open(folder)))  # warm-up: Numba caches, lazy tables
     start = time.perf_counter()
     (scan, _, _), = recording_scans(Recording.open(folder))
     seconds = time.perf_counter() - start
