@@ -132,7 +132,8 @@ def run(quick: bool = False) -> list[dict]:
             })
     dark = LaserSettings(method="dark")
     rows.append({
-        "stage": "laser extraction", "method": "dark method (eq. 1), blais_rioux on red",
+        "stage": "laser extraction",
+        "method": f"dark method (eq. 1), {dark.estimator} on {dark.fit_channel}",
         "settings": "auto t, 640x480", "median_s": median_time(
             lambda: extract_stripe(timing_frame, dark), repeats=repeats),
         "error": stripe_errors(dark, {"mjpg": frames["mjpg"]})["mjpg"][0],
@@ -185,7 +186,7 @@ def run(quick: bool = False) -> list[dict]:
     real = real_agreement()
     if real is not None:
         rows.append({
-            "stage": "laser extraction", "method": "blais_rioux on red, real laser pair",
+            "stage": "laser extraction", "method": "default settings, real laser pair",
             "settings": "3DScanScience laser.png 1280x960, axis rows, stripe 8 px",
             "median_s": real[1], "error": 1.0 - real[0],
             "error_unit": "rows off the difference-image stripe (fraction)", "peers": {}})

@@ -326,3 +326,18 @@ def test_coverage_is_rotation_invariant_and_sums_the_big_gaps(values, turn):
     wrapped = np.sort(np.mod(values, 2 * math.pi))
     gaps = np.diff(np.append(wrapped, wrapped[0] + 2 * math.pi))
     assert a.covered == pytest.approx(2 * math.pi - gaps[gaps > math.radians(15)].sum())
+
+
+def test_simulator_frames():
+    """Frames of the simulator (motion blur, defocus pillbox, sRGB, MJPG): its true heading."""
+    from scanmap_driver.sim import Renderer, builtin_scene, plan_scans
+
+    scene = builtin_scene("office")
+    plan = plan_scans(scene, MODEL, seed=1, count=1)[0]
+    renderer = Renderer(scene, MODEL)
+    rng = np.random.default_rng(11)
+    for frame in (0, len(plan.frame_times) // 3, 2 * len(plan.frame_times) // 3):
+        rendered = renderer.render(plan, frame, rng)
+        result = decode_heading(rendered.image, MODEL)
+        assert result.ok, result.reason
+        assert abs(heading_error(result, rendered.truth.heading)) < 0.05

@@ -71,6 +71,19 @@ def blais_rioux_reference(g: np.ndarray, i0: int) -> float:
 WORK = np.empty(18)  # scratch of the Gaussian fit
 
 
+def com_reference(g: np.ndarray, i0: int, half: int) -> float:
+    """Centroid of g - g[i0]/2 over the unbroken run above g[i0]/2 around i0 (+- half)."""
+    above = g > 0.5 * g[i0]
+    lo = i0
+    while lo - 1 >= max(0, i0 - half) and above[lo - 1]:
+        lo -= 1
+    hi = i0
+    while hi + 1 <= min(len(g) - 1, i0 + half) and above[hi + 1]:
+        hi += 1
+    w = g[lo:hi + 1] - 0.5 * g[i0]
+    return float(np.sum(w * (np.arange(lo, hi + 1) - i0)) / w.sum())
+
+
 def gaussian(x, amp, mu, sig):
     return amp * np.exp(-0.5 * ((x - mu) / sig) ** 2)
 
@@ -127,11 +140,11 @@ def test_red_statistics_and_colour_threshold_match_numpy(by_rows):
     rng = np.random.default_rng(6)
     image = rng.integers(0, 256, (30, 41, 3), dtype=np.uint8)
     red = image[:, :, 2].astype(float)
-    mean, std, level = laser.red_statistics(image.reshape(-1), 30, 41, by_rows)
-    assert mean == pytest.approx(red.mean()) and std == pytest.approx(red.std())
+    mean, level = laser.red_statistics(image.reshape(-1), 30, 41, by_rows)
+    assert mean == pytest.approx(red.mean())
     assert level == np.median(red.max(axis=1 if by_rows else 0))
     t = laser.automatic_colour_threshold(image.reshape(-1), 30, 41, by_rows)
-    assert t == pytest.approx(np.clip(max(0.5 * (mean + level), mean + 3 * std), 40, 250))
+    assert t == pytest.approx(np.clip(0.5 * (mean + level), 40, 250))
 
 
 def test_drop_isolated_example():
@@ -172,7 +185,7 @@ def test_estimators_on_sampled_gaussian(offset, sigma):
     lsq = laser.peak_offset(g, 11, 5, clipped, laser.EST_LSQ, 5, WORK)
     assert lsq == pytest.approx(offset, abs=2e-3)  # stops at steps below 1e-3 px
     com = laser.offset_com(g, 11, 5, 5)
-    assert com == pytest.approx(np.sum(g * (x - 5)) / g.sum(), abs=1e-12)
+    assert com == pytest.approx(com_reference(g, 5, 5), abs=1e-12)
 
 
 @settings(max_examples=40, deadline=None)
@@ -215,7 +228,7 @@ def rms_error(result, truth):
 
 
 @pytest.mark.parametrize(("estimator", "bound"), [
-    ("blais_rioux", 0.035), ("lsq", 0.035), ("gauss3", 0.05), ("com", 0.09), ("max", 0.33)])
+    ("blais_rioux", 0.035), ("lsq", 0.035), ("gauss3", 0.05), ("com", 0.07), ("max", 0.33)])
 def test_subpixel_accuracy_dark_sigma_1_5(estimator, bound):
     """sigma 1.5 px, amplitude 180 over noise 2 (SNR 90): RMS error against the exact centre."""
     image, truth = stripe_frame(np.random.default_rng(11))
@@ -227,7 +240,7 @@ def test_subpixel_accuracy_dark_sigma_1_5(estimator, bound):
 def test_default_estimator_under_noise_saturation_and_mjpg():
     rng = np.random.default_rng(12)
     cases = {  # scene -> RMS bound (px); MJPG chroma quantisation dominates its error
-        "noise 5": (dict(noise=5.0), 0.06),
+        "noise 5": (dict(noise=5.0), 0.08),
         "saturated core": (dict(amplitude=600.0), 0.05),
         "mjpg": (dict(jpeg=85), 0.22),
         "saturated mjpg": (dict(amplitude=600.0, jpeg=85), 0.2),
@@ -428,15 +441,17 @@ def test_real_laser_pair_single_frame_agrees_with_difference_and_ignores_cube():
     assert not inside.any()
 
 
+@pytest.mark.parametrize("method", ["bright", "dark"])
 @pytest.mark.parametrize("suffix", ["", "-x"])
-def test_real_two_laser_pattern_pairs(suffix):
-    """Two laser lines on a calibration board: each found peak lies on one of them."""
+def test_real_two_laser_pattern_pairs(suffix, method):
+    """Two laser lines on a calibration board in a dark room, a red-lit turntable below:
+    each found peak lies on one of the lines."""
     folder = real_data(f"{REAL}/3.2_laser_in_pattern")
     on = cv2.imread(str(folder / f"laser-0-255-255-8{suffix}.png"))
     off = cv2.imread(str(folder / f"laser-background-0-255-255-8{suffix}.png"))
-    result = extract_stripe(on, LaserSettings(axis="rows", stripe_width=8.0))
+    result = extract_stripe(on, LaserSettings(method=method, axis="rows", stripe_width=8.0))
     stripe_rows, agree = difference_agreement(on, off, result)
-    assert agree[stripe_rows].mean() > 0.88  # measured 0.96 and 0.92
+    assert agree[stripe_rows].mean() > 0.88  # measured 0.92-0.96
     multiple = result.flags[stripe_rows] & Flag.MULTIPLE > 0
     assert multiple.mean() > 0.5  # both lines are candidates on most rows
 
@@ -450,3 +465,31 @@ def test_real_frames_are_not_rotated_in_the_hot_path():
                           LaserSettings(stripe_width=4.0))
     assert np.array_equal(rows.peak, cols.peak, equal_nan=True)
     assert math.isclose(rows.threshold, cols.threshold)
+
+
+def test_simulator_frames():
+    """Frames of the simulator: peaks on its true stripe (its strongest point per column)."""
+    from scanmap_driver.encoder import laser_line_range
+    from scanmap_driver.scanner_model import reference_scanner
+    from scanmap_driver.sim import Renderer, builtin_scene, plan_scans
+
+    model = reference_scanner()
+    scene = builtin_scene("office")
+    plan = plan_scans(scene, model, seed=1, count=1)[0]
+    renderer = Renderer(scene, model)
+    settings = LaserSettings(line_range=laser_line_range(model))
+    rng = np.random.default_rng(12)
+    errors = []
+    for frame in (5, len(plan.frame_times) // 2):
+        rendered = renderer.render(plan, frame, rng)
+        truth = rendered.truth.stripe.select(rendered.truth.primary)
+        peak = extract_stripe(rendered.image, settings).peak
+        errors.append(peak[truth.u.astype(int)] - truth.v)
+        on_truth = np.zeros(640, bool)
+        on_truth[truth.u.astype(int)] = True
+        assert np.isfinite(peak[~on_truth]).sum() <= 3  # no stripe where the simulator has none
+    err = np.concatenate(errors)
+    found = np.isfinite(err)
+    assert found.mean() > 0.5  # the weakest returns (dark, far) stay below the threshold
+    assert np.mean(np.abs(err[found]) > 1.5) < 0.02
+    assert np.sqrt(np.mean(err[found][np.abs(err[found]) < 1.5] ** 2)) < 0.4
