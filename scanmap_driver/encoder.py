@@ -10,9 +10,11 @@ Decoding (the paper intersects the pixel's ray with the disk plane, as for laser
 1. Geometry, once per model: the ray of every pixel of the disk's band is intersected with
    the disk plane (in `head`); pixels that land on the code ring, clear of its edges,
    are binned by their disk angle phi in `head` into a 1-D angular profile.
-2. Per frame: the profile of mean grey levels, then the normalised correlation with the
-   rendered code, defocus-blurred, `value(phi + theta)`, over 8 candidate headings per
-   sector (coarse). Correlation stays absolute under blur where bit thresholding fails.
+2. Per frame: the profile of mean grey levels, turned back into linear light (webcams
+   deliver sRGB; blur is symmetric only in linear light), then the normalised
+   correlation with the rendered code, defocus-blurred, `value(phi + theta)`, over 8
+   candidate headings per sector (coarse). Correlation stays absolute under blur where
+   bit thresholding fails.
 3. Refinement from the edges: each code edge in view is located where the profile
    crosses the middle between the dark and light levels (linear interpolation between
    bins); each edge gives theta = edge angle - observed phi, and their robust mean is
@@ -430,12 +432,13 @@ def fill_unreadable(headings: np.ndarray, ok: np.ndarray, times: np.ndarray,
                     max_gap: float = 0.5) -> np.ndarray:
     """Headings (rad, wrapped) with the unreadable frames interpolated from their neighbours.
 
-    The motion is smooth: between the readable frames before and after, the heading is
-    interpolated linearly in time on the unwrapped angle (consecutive readable frames
-    must be less than half a turn apart). Frames before the first or after the last
-    readable frame are extrapolated from the two nearest readable ones. A frame more than
-    `max_gap` seconds from a readable frame on either side it needs stays NaN. The filled
-    frames are the ones with `ok` False; the caller flags them.
+    The motion is smooth: between the readable frames before and after a run of
+    unreadable ones, the heading is interpolated linearly in time on the unwrapped angle,
+    if those two frames are at most `max_gap` seconds apart (less than half a turn, so the
+    unwrapping is sure). Frames before the first or after the last readable frame are
+    extrapolated from the two nearest readable ones, up to `max_gap` from the nearest.
+    Everything else stays NaN. The filled frames are the ones with `ok` False (or a NaN
+    heading); the caller flags them.
     """
     headings = np.asarray(headings, dtype=np.float64)
     ok = np.asarray(ok, dtype=bool)
@@ -443,32 +446,29 @@ def fill_unreadable(headings: np.ndarray, ok: np.ndarray, times: np.ndarray,
     if not headings.shape == ok.shape == times.shape or headings.ndim != 1:
         raise ScanError(f"fill_unreadable: headings, ok and times must be 1-D of one length, "
                         f"got {headings.shape}, {ok.shape}, {times.shape}")
-    ok = ok & np.isfinite(headings)
     if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
         raise ScanError("fill_unreadable: frame times must be finite and increasing")
+    ok = ok & np.isfinite(headings)
     out = np.full(headings.shape, np.nan)
     known = np.flatnonzero(ok)
     if known.size == 0:
         return out
     unwrapped = np.unwrap(headings[known])
-    out[known] = headings[known]
+    out[known] = unwrapped
     t_known = times[known]
     for i in np.flatnonzero(~ok):
         after = int(np.searchsorted(t_known, times[i]))
         if 0 < after < known.size:
             a, b = after - 1, after
-            if t_known[b] - t_known[a] <= 2.0 * max_gap and min(
-                    times[i] - t_known[a], t_known[b] - times[i]) <= max_gap:
+            if t_known[b] - t_known[a] <= max_gap:
                 w = (times[i] - t_known[a]) / (t_known[b] - t_known[a])
                 out[i] = unwrapped[a] + w * (unwrapped[b] - unwrapped[a])
-            continue
-        if known.size < 2:
-            continue
-        a, b = (0, 1) if after == 0 else (known.size - 2, known.size - 1)
-        near = a if after == 0 else b
-        if abs(times[i] - t_known[near]) <= max_gap:
-            rate = (unwrapped[b] - unwrapped[a]) / (t_known[b] - t_known[a])
-            out[i] = unwrapped[near] + rate * (times[i] - t_known[near])
+        elif known.size >= 2:
+            a, b = (0, 1) if after == 0 else (known.size - 2, known.size - 1)
+            near = a if after == 0 else b
+            if abs(times[i] - t_known[near]) <= max_gap:
+                rate = (unwrapped[b] - unwrapped[a]) / (t_known[b] - t_known[a])
+                out[i] = unwrapped[near] + rate * (times[i] - t_known[near])
     return wrap_angle(out)
 
 

@@ -286,9 +286,11 @@ def test_fill_unreadable_ends_and_long_gaps():
     ok = np.ones(60, bool)
     ok[:3] = False  # start: extrapolated from frames 3 and 4
     ok[20:45] = False  # one second lost: not interpolated
+    ok[50:53] = False  # 0.16 s lost: interpolated
     observed = np.where(ok, np.angle(np.exp(1j * truth)), np.nan)
     filled = fill_unreadable(observed, ok, times, max_gap=0.3)
-    assert np.all(np.isnan(filled[25:40]))
+    assert np.all(np.isnan(filled[20:45]))
+    assert np.abs(np.angle(np.exp(1j * (filled[50:53] - truth[50:53])))).max() < 0.01
     assert np.abs(np.angle(np.exp(1j * (filled[:3] - truth[:3])))).max() < 0.02
     assert np.all(np.isfinite(filled[ok]))
 
