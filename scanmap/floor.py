@@ -69,6 +69,10 @@ class FloorParams:
     hit from above (a table top fits in one 5 cm bin) can hide in the unseen bins.
     min_coverage_no_floor: the same where no floor was seen in or next to the cell (a
     cell inside or under an object, its floor height carried from farther).
+    overhang_reach: how far (m) the heights of an overhanging obstacle (a table top seen
+    only at its rim: this scanner's laser, 0.5 m up, never lights a top above it) are
+    assumed to extend over cells that never saw those heights; overhang_thickness: the
+    thickest level taken for such a board (a table top, a seat, a shelf).
     """
 
     thickness: float = 0.06
@@ -80,6 +84,8 @@ class FloorParams:
     fill_radius: float = 1.0
     min_coverage: float = 0.5
     min_coverage_no_floor: float = 0.9
+    overhang_reach: float = 0.6
+    overhang_thickness: float = 0.1
     ransac_iterations: int = 200
     seed: int = 0
     detect: bool = True
@@ -103,7 +109,9 @@ class FloorPlane:
 class Segmentation:
     """Floor and obstacle layers of a window of the grid (row = y, column = x).
 
-    floor_height: (ny, nx) float32, NaN where unknown. is_floor: observed floor cells.
+    floor_height: (ny, nx) float32, NaN where unknown. is_floor: open floor: the floor was
+    seen there, nothing is in the robot's band, and nothing may hang above unseen (not
+    the floor under a table). Traversable = is_floor and FREE (the band was seen).
     state: UNKNOWN / FREE / OBSTACLE per cell. points: (ny, nx, 2) float32, the obstacle
     point of each obstacle cell (mean of its hits in the band), the centre elsewhere.
     band_logodds: (ny, nx) float32, highest log-odds in the band (NaN where none).
@@ -182,22 +190,115 @@ def _popcount(v: np.uint64) -> int:
     return count
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _widen(mask: np.uint64) -> np.uint64:
+    """A surface seen as hits has a thickness nobody measured: widen it by two bins."""
+    one = np.uint64(1)
+    mask |= (mask << one) | (mask >> one)
+    return mask | (mask << one) | (mask >> one)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _between_seen(seen: np.uint64) -> np.uint64:
+    """Heights strictly between the lowest and the highest height seen: a gap there is a
+    gap in what rays crossed, not a height above or below everything they saw."""
+    if seen == 0:
+        return np.uint64(0)
+    low = 0
+    while not (seen >> np.uint64(low)) & np.uint64(1):
+        low += 1
+    high = 63
+    while not (seen >> np.uint64(high)) & np.uint64(1):
+        high -= 1
+    if high - low < 2:
+        return np.uint64(0)
+    return gk.height_mask(0.5 + low + 1, 0.5 + high - 1, 0.0, 1.0)
+
+
+@njit(cache=True, nogil=True)
+def _plates(hanging: np.ndarray) -> np.ndarray:
+    """Keep the boards that continue sideways at the same heights in at least two of the
+    8 neighbouring cells (a table top's rim does; a stray piece of a wall face does not)."""
+    ny, nx = hanging.shape
+    out = np.zeros((ny, nx), np.uint64)
+    for y in range(ny):
+        for x in range(nx):
+            if not hanging[y, x]:
+                continue
+            count = 0
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if (yy != y or xx != x) and hanging[yy, xx] & hanging[y, x]:
+                        count += 1
+            if count >= 2:
+                out[y, x] = hanging[y, x]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _spread_overhangs(hanging: np.ndarray, gaps: np.ndarray, state: np.ndarray,
+                      reach: int) -> np.ndarray:
+    """Heights of overhanging obstacles carried up to `reach` cells into the cells around
+    them (8-neighbours) with gaps at those heights in what they saw: the top of a table
+    seen only at its rim covers the cells inside the rim."""
+    ny, nx = hanging.shape
+    spread = hanging.copy()
+    size = ny * nx * 4
+    queue = np.empty(size, np.int64)
+    depth = np.empty(size, np.int64)
+    head, tail = 0, 0
+    for y in range(ny):
+        for x in range(nx):
+            if hanging[y, x] and tail < size:
+                queue[tail], depth[tail] = y * nx + x, 0
+                tail += 1
+    while head < tail:
+        i, d = queue[head % size], depth[head % size]
+        head += 1
+        if d >= reach:
+            continue
+        y, x = i // nx, i % nx
+        for yy in range(max(y - 1, 0), min(y + 2, ny)):
+            for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                if state[yy, xx] == OBSTACLE:
+                    continue
+                add = spread[y, x] & gaps[yy, xx] & ~spread[yy, xx]
+                if add and tail - head < size:
+                    spread[yy, xx] |= add
+                    queue[tail % size], depth[tail % size] = yy * nx + xx, d + 1
+                    tail += 1
+    return spread
+
+
 @njit(cache=True, nogil=True)
 def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
-                  floor_height: np.ndarray, is_floor: np.ndarray, step: float, height: float,
-                  z_min: float, mask_dz: float, coverage: np.ndarray, origin_x: float,
-                  origin_y: float, res: float, state: np.ndarray, points: np.ndarray,
-                  band_logodds: np.ndarray) -> None:
-    """UNKNOWN / FREE / OBSTACLE per cell, obstacle points and the band's highest log-odds.
+                  floor_height: np.ndarray, floor_seen: np.ndarray, step: float,
+                  height: float, z_min: float, mask_dz: float, coverage: np.ndarray,
+                  reach: int, thin: float, origin_x: float, origin_y: float, res: float,
+                  state: np.ndarray, points: np.ndarray, band_logodds: np.ndarray,
+                  covered: np.ndarray) -> None:
+    """UNKNOWN / FREE / OBSTACLE per cell, obstacle points and the band's highest log-odds;
+    `covered`: cells that may lie under an overhanging obstacle (see below).
 
-    A cell without anything in its band is FREE when rays saw at least `coverage[0]` of
-    the band's height bins free (`coverage[1]` where no floor was seen in or next to
-    the cell: under or inside objects), and none of its unseen bins is within two bins
-    of a height where a neighbouring cell holds an obstacle (a table top never hit from
-    above in some cells stays UNKNOWN there rather than free).
+    Heights no ray saw anywhere in the window (above the camera) are left out: nothing
+    can be known there. A cell without anything in its band is FREE when rays saw at
+    least `coverage[0]` of the band's height bins free (`coverage[1]` where no floor was
+    seen in or next to the cell: under or inside objects), and none of the heights it
+    has not seen is
+    suspect: within two bins of an obstacle in a neighbouring cell, or of an overhanging
+    board (the lowest level in its cell, at most `thin` thick, free space seen under it)
+    within `reach` cells
+    through cells that have not seen those heights either but saw above and below them
+    (`_spread_overhangs`).
     """
     ny, nx = nlev.shape
     occupied = np.zeros((ny, nx), np.uint64)  # band heights held by obstacles, per cell
+    hanging = np.zeros((ny, nx), np.uint64)  # the same, of obstacles clear of the floor
+    unseen = np.zeros((ny, nx), np.uint64)
+    observable = np.uint64(0)  # heights some ray saw somewhere (not above the camera)
+    for y in range(ny):
+        for x in range(nx):
+            observable |= seen[y, x]
     for y in range(ny):
         for x in range(nx):
             cx, cy = origin_x + (x + 0.5) * res, origin_y + (y + 0.5) * res
@@ -208,12 +309,17 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
             if np.isnan(f):
                 continue
             low, high = f + step, f + height
+            band = gk.height_mask(low, high - 1e-6, z_min, mask_dz) & observable
+            unseen[y, x] = band & ~seen[y, x]
             weight, sx, sy = 0.0, 0.0, 0.0
             for k in range(nlev[y, x]):
                 lo, hi = levels[y, x, k, gk.LO], levels[y, x, k, gk.HI]
                 if hi > low and lo < high:
-                    occupied[y, x] |= gk.height_mask(max(lo, low), min(hi, high), z_min,
-                                                     mask_dz)
+                    bits = gk.height_mask(max(lo, low), min(hi, high), z_min, mask_dz)
+                    if lo > low and hi - lo <= thin and occupied[y, x] == 0 \
+                            and seen[y, x] & gk.height_mask(low, lo, z_min, mask_dz):
+                        hanging[y, x] |= _widen(bits)  # a board with free space under it
+                    occupied[y, x] |= bits
                     w = 1.0 + levels[y, x, k, gk.LOGODDS]
                     weight += w
                     sx += w * levels[y, x, k, gk.MX]
@@ -224,28 +330,27 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
             if weight > 0.0:
                 state[y, x] = OBSTACLE
                 points[y, x, 0], points[y, x, 1] = cx + sx / weight, cy + sy / weight
+    gaps = np.empty((ny, nx), np.uint64)
+    for y in range(ny):
+        for x in range(nx):
+            gaps[y, x] = unseen[y, x] & _between_seen(seen[y, x])
+    overhang = _spread_overhangs(_plates(hanging), gaps, state, reach)
     for y in range(ny):
         for x in range(nx):
             f = floor_height[y, x]
             if state[y, x] == OBSTACLE or np.isnan(f):
                 continue
-            band = gk.height_mask(f + step, f + height - 1e-6, z_min, mask_dz)
-            unseen = band & ~seen[y, x]
+            band = gk.height_mask(f + step, f + height - 1e-6, z_min, mask_dz) & observable
             need = coverage[1]
+            suspect = overhang[y, x]
             for yy in range(max(y - 1, 0), min(y + 2, ny)):
                 for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                    if is_floor[yy, xx]:
+                    if floor_seen[yy, xx]:
                         need = coverage[0]
-            if _popcount(band & seen[y, x]) < need * _popcount(band):
-                continue
-            suspect = np.uint64(0)
-            for yy in range(max(y - 1, 0), min(y + 2, ny)):
-                for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                    suspect |= occupied[yy, xx]
-            # A surface seen as hits has a thickness nobody measured: widen by two bins.
-            suspect |= (suspect << np.uint64(1)) | (suspect >> np.uint64(1))
-            suspect |= (suspect << np.uint64(1)) | (suspect >> np.uint64(1))
-            if unseen & suspect == 0:
+                    suspect |= _widen(occupied[yy, xx])
+            covered[y, x] = unseen[y, x] & overhang[y, x] != 0
+            if _popcount(band & seen[y, x]) >= need * _popcount(band) \
+                    and unseen[y, x] & suspect == 0:
                 state[y, x] = FREE
 
 
@@ -340,10 +445,13 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     points = np.empty((ny, nx, 2), np.float32)
     band_logodds = np.empty((ny, nx), np.float32)
     coverage = np.array([params.min_coverage, params.min_coverage_no_floor])
+    covered = np.zeros((ny, nx), np.bool_)
     classify_band(layers.levels, layers.nlev, layers.seen, floor_height, is_floor,
                   robot.step_height, robot.height, layers.z_min, layers.mask_dz, coverage,
-                  layers.origin[0], layers.origin[1], res, state, points, band_logodds)
+                  round(params.overhang_reach / res), params.overhang_thickness,
+                  layers.origin[0], layers.origin[1], res, state, points, band_logodds, covered)
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
-                        floor_height=floor_height, is_floor=is_floor, planes=planes,
+                        floor_height=floor_height,
+                        is_floor=is_floor & (state != OBSTACLE) & ~covered, planes=planes,
                         state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated)

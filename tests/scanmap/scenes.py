@@ -134,15 +134,12 @@ def truth_obstacles(scene: Scene, xs: np.ndarray, ys: np.ndarray, step: float,
     return out
 
 
-def truth_floor(scene: Scene, xs: np.ndarray, ys: np.ndarray, step: float) -> np.ndarray:
-    """(ny, nx) cells where the robot finds floor: no box rising from below step height
-    above it (boxes lower than the step are driven over, so their tops are floor)."""
-    x, y = np.meshgrid(xs, ys)
-    out = np.ones(x.shape, bool)
-    for box in scene.boxes:
-        if box.lo[2] < step < box.hi[2]:
-            out &= ~in_box_footprint(box, x, y)
-    return out
+def truth_floor(scene: Scene, xs: np.ndarray, ys: np.ndarray, step: float,
+                height: float) -> np.ndarray:
+    """(ny, nx) open floor cells: nothing in the robot's band (step, height) above them
+    (boxes lower than the step are driven over, so their tops are floor; the floor under
+    a table top is not open)."""
+    return ~truth_obstacles(scene, xs, ys, step, height)
 
 
 def truth_distance(scene: Scene, x: np.ndarray, y: np.ndarray, step: float,

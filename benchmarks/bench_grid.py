@@ -1,0 +1,327 @@
+"""The 2.5D grid: insertion speed against OctoMap, distance field, queries, and accuracy on
+the simulator's office (ideal scans, scored against its truth raster and its geometry).
+
+Rows:
+* insert: one 20,000-point scan with ray clearing at 5 cm (steady state, grid already
+  holding the office), ours (bundled rays, and every ray traced) against OctoMap's
+  insertPointCloud at 0.05 m with each frame's camera centre as origin, same points.
+* distance field: exact EDT of a 20 m x 20 m window (400 x 400), against scipy's.
+* distance(): per point, batches of 1e6; nearest(): one call from Python while another
+  thread inserts scans (median and p99).
+* accuracy: obstacle-cell F1 in the robot band (over cells the true points hit, and over
+  every truth cell), floor precision/recall, nearest-obstacle distance error (p95) at
+  random floor points against the exact scene geometry; OctoMap's F1 as the peer.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from benchmarks.timing import first_call_time, median_time
+from scanmap.distance_field import distance_transform
+from scanmap.floor import OBSTACLE, RobotShape, segment
+from scanmap.grid import GridConfig, HeightGrid
+from scanmap.obstacles import ObstacleMap
+from scanmap.rays import scan_rays
+from scanmap_driver.scanner_model import reference_scanner
+from scanmap_driver.sim.ideal import ideal_scans
+from scanmap_driver.sim.raster import FLOOR, truth_raster
+from scanmap_driver.sim.raster import OBSTACLE as TRUE_OBSTACLE
+from scanmap_driver.sim.scene import Box, load_scene
+
+OFFICE = Path(__file__).resolve().parents[1] / "scanmap_driver" / "sim" / "scenes" / "office.json"
+ROBOT = RobotShape()
+
+
+def office_rays(quick: bool) -> tuple[object, list[tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                         np.ndarray]]]:
+    """The office scene and, per ideal scan: map points, origins, frame index, true points."""
+    scene = load_scene(OFFICE)
+    model = reference_scanner()
+    out = []
+    for ideal in ideal_scans(scene, model, scans=6 if quick else None):
+        points, origins = scan_rays(ideal.scan, model, ideal.frame_poses)
+        pose = ideal.frame_poses[ideal.scan.frame_index]
+        true = np.einsum("nij,nj->ni", pose[:, :3, :3], ideal.true_points) + pose[:, :3, 3]
+        out.append((points, origins, ideal.scan.frame_index, true))
+    return scene, out
+
+
+def cells_of(points: np.ndarray, origin: np.ndarray, res: float, shape) -> tuple:
+    """Row, column of each point, keeping those inside the raster."""
+    col = np.floor((points[:, 0] - origin[0]) / res).astype(int)
+    row = np.floor((points[:, 1] - origin[1]) / res).astype(int)
+    keep = (row >= 0) & (row < shape[0]) & (col >= 0) & (col < shape[1])
+    return row[keep], col[keep]
+
+
+def f1(predicted: np.ndarray, truth: np.ndarray, observable: np.ndarray) -> tuple[float, float]:
+    """F1 with recall over the observable truth cells, and over every truth cell."""
+    precision = (predicted & truth).sum() / max(predicted.sum(), 1)
+    scores = []
+    for reference in (truth & observable, truth):
+        recall = (predicted & reference).sum() / max(reference.sum(), 1)
+        scores.append(2 * precision * recall / max(precision + recall, 1e-12))
+    return scores[0], scores[1]
+
+
+def boundary_ties(scene, reference) -> np.ndarray:
+    """Cells whose truth class flips when every object grows or shrinks by 2 mm: a face on
+    (or within range noise of) a cell edge. The raster settles them by floating-point
+    rounding (the office's walls lie on multiples of 5 cm), the map by range noise."""
+    def resized(delta: float) -> np.ndarray:
+        objects = [replace(o, size=(o.size[0] + 2 * delta, o.size[1] + 2 * delta, o.size[2]))
+                   if isinstance(o, Box) else replace(o, radius=o.radius + delta)
+                   for o in scene.objects]
+        raster = truth_raster(replace(scene, objects=objects), 0.05, ROBOT.step_height,
+                              ROBOT.height)
+        out = np.zeros(reference.classes.shape, bool)  # on the reference's cells
+        dx, dy = np.rint((raster.origin - reference.origin) / 0.05).astype(int)
+        ny, nx = raster.classes.shape
+        rows = slice(max(dy, 0), min(dy + ny, out.shape[0]))
+        cols = slice(max(dx, 0), min(dx + nx, out.shape[1]))
+        out[rows, cols] = (raster.classes == TRUE_OBSTACLE)[rows.start - dy:rows.stop - dy,
+                                                            cols.start - dx:cols.stop - dx]
+        return out
+    return resized(0.002) != resized(-0.002)
+
+
+def true_distance(scene, q: np.ndarray) -> np.ndarray:
+    """Exact distance from (x, y) to the nearest object footprint in the robot band."""
+    best = np.full(len(q), np.inf)
+    for obj in scene.objects:
+        height = obj.size[2] if isinstance(obj, Box) else obj.height
+        if not (obj.center[2] + height / 2 > ROBOT.step_height
+                and obj.center[2] - height / 2 < ROBOT.height):
+            continue
+        d = q - np.array(obj.center[:2])
+        if isinstance(obj, Box):
+            c, s = math.cos(obj.yaw), math.sin(obj.yaw)
+            local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+            outside = np.maximum(np.abs(local) - np.array(obj.size[:2]) / 2, 0.0)
+            best = np.minimum(best, np.hypot(outside[:, 0], outside[:, 1]))
+        else:
+            best = np.minimum(best, np.maximum(np.hypot(d[:, 0], d[:, 1]) - obj.radius, 0.0))
+    return best
+
+
+def accuracy_rows(scene, scans, grid: HeightGrid, octomap_f1: tuple | None) -> list[dict]:
+    """Score the grid against the truth raster and the scene geometry."""
+    truth = truth_raster(scene, 0.05, ROBOT.step_height, ROBOT.height)
+    ny, nx = truth.classes.shape
+    x0, y0 = map(float, truth.origin)
+    obstacles = ObstacleMap(ROBOT, max_age=1e9, clock=lambda: grid.stamp)
+    snap = obstacles.update(grid, (x0, y0, x0 + nx * 0.05, y0 + ny * 0.05))
+    seg = snap.segmentation
+    assert seg.shape == (ny, nx)
+    true_points = np.vstack([t for *_, t in scans])
+    in_band = (true_points[:, 2] > ROBOT.step_height) & (true_points[:, 2] < ROBOT.height)
+    observable = np.zeros((ny, nx), bool)
+    observable[cells_of(true_points[in_band], truth.origin, 0.05, (ny, nx))] = True
+    floor_seen = np.zeros((ny, nx), bool)
+    floor_seen[cells_of(true_points[np.abs(true_points[:, 2]) < 0.01], truth.origin, 0.05,
+                        (ny, nx))] = True
+    true_obstacle = truth.classes == TRUE_OBSTACLE
+    f1_seen, f1_all = f1(seg.state == OBSTACLE, true_obstacle, observable)
+    ties = boundary_ties(scene, truth)
+    f1_untied, _ = f1((seg.state == OBSTACLE) & ~ties, true_obstacle & ~ties, observable)
+    true_floor = truth.classes == FLOOR
+    floor_precision = (seg.is_floor & true_floor).sum() / max(seg.is_floor.sum(), 1)
+    floor_recall = (seg.is_floor & true_floor & floor_seen).sum() / max(
+        (true_floor & floor_seen).sum(), 1)
+    untied = true_floor & floor_seen & ~ties
+    floor_recall_untied = (seg.is_floor & untied).sum() / max(untied.sum(), 1)
+    rows_f, cols_f = np.nonzero(true_floor)
+    rng = np.random.default_rng(0)
+    pick = rng.choice(len(rows_f), min(20000, len(rows_f)), replace=False)
+    q = np.column_stack([x0 + (cols_f[pick] + rng.random(len(pick))) * 0.05,
+                         y0 + (rows_f[pick] + rng.random(len(pick))) * 0.05])
+    truth_d = true_distance(scene, q)
+    keep = truth_d > 0.0
+    q, truth_d = q[keep], truth_d[keep]
+    error = np.abs(obstacles.obstacle_distance(q) - truth_d)
+    clearance = obstacles.distance(q)
+    peers = {}
+    if octomap_f1 is not None:
+        peers["octomap"] = {"error": 1.0 - octomap_f1[0]}
+    settings = f"office, {len(scans)} ideal scans, band {ROBOT.step_height}-{ROBOT.height} m"
+    return [
+        {"stage": "grid accuracy", "method": "obstacle cells", "settings": settings,
+         "median_s": None, "error": 1.0 - f1_seen, "error_unit": "1 - F1 (observable cells)",
+         "f1_observable": f1_seen, "f1_all_truth_cells": f1_all,
+         "f1_without_edge_ties": f1_untied, "edge_tie_cells": int(ties.sum()),
+         "unknown_fraction_of_floor": float((seg.state[true_floor] == 0).mean()),
+         "peers": peers},
+        {"stage": "grid accuracy", "method": "floor cells", "settings": settings,
+         "median_s": None, "error": 1.0 - min(floor_precision, floor_recall),
+         "error_unit": "1 - min(precision, recall)", "precision": floor_precision,
+         "recall": floor_recall, "recall_without_edge_ties": floor_recall_untied,
+         "peers": {}},
+        {"stage": "grid accuracy", "method": "nearest obstacle distance", "settings": settings,
+         "median_s": None, "error": float(np.percentile(error, 95)), "error_unit": "m (p95)",
+         "median_error": float(np.median(error)),
+         "clearance_over_truth_max": float((clearance - truth_d).max()),
+         "clearance_equals_obstacle_fraction": float(np.mean(clearance >= truth_d - 0.03)),
+         "peers": {}},
+    ]
+
+
+def octomap_peer(scans, resolution: float = 0.05):
+    """OctoMap fed the same rays (one insertPointCloud per frame, its camera centre as
+    origin): the tree and a function inserting one scan."""
+    import octomap
+
+    tree = octomap.OcTree(resolution)
+
+    def insert(scan) -> None:
+        points, origins, frames, _ = scan
+        for f in np.unique(frames):
+            sel = frames == f
+            tree.insertPointCloud(np.ascontiguousarray(points[sel]), origins[sel][0])
+
+    return tree, insert
+
+
+def octomap_f1(tree, truth_scene, scans) -> tuple[float, float]:
+    """OctoMap's occupied voxels in the robot band, projected to 2-D cells, scored."""
+    truth = truth_raster(truth_scene, 0.05, ROBOT.step_height, ROBOT.height)
+    occupied, _ = tree.extractPointCloud()
+    occupied = np.asarray(occupied)
+    band = (occupied[:, 2] > ROBOT.step_height) & (occupied[:, 2] < ROBOT.height)
+    predicted = np.zeros(truth.classes.shape, bool)
+    predicted[cells_of(occupied[band], truth.origin, 0.05, predicted.shape)] = True
+    true_points = np.vstack([t for *_, t in scans])
+    in_band = (true_points[:, 2] > ROBOT.step_height) & (true_points[:, 2] < ROBOT.height)
+    observable = np.zeros(predicted.shape, bool)
+    observable[cells_of(true_points[in_band], truth.origin, 0.05, predicted.shape)] = True
+    return f1(predicted, truth.classes == TRUE_OBSTACLE, observable)
+
+
+def resampled(scan, n: int = 20_000):
+    """The scan cut (or repeated) to exactly n rays, whole frames first."""
+    points, origins, frames, true = scan
+    index = np.arange(n) % len(points)
+    return points[index], origins[index], frames[index], true[index]
+
+
+def insertion_rows(scans, grid_config: GridConfig, quick: bool) -> list[dict]:
+    scan = resampled(scans[len(scans) // 2])
+    points, origins, _, _ = scan
+    rows = []
+    repeats = 5 if quick else 30
+    _, octo_insert = octomap_peer(scans)
+    for scan_k in scans:
+        octo_insert(scan_k)
+    octomap_s = median_time(lambda: octo_insert(scan), repeats=3 if quick else 7)
+    for label, config in (("bundled rays (default)", grid_config),
+                          ("every ray traced", GridConfig(bundle_run=0))):
+        grid = HeightGrid(config)
+        compile_s = first_call_time(lambda g=grid: g.insert(points[:10], origins[:10], -1.0))
+        for k, (p, o, _, _) in enumerate(scans):
+            grid.insert(p, o, float(k))
+        stamp = [len(scans)]
+
+        def insert(g=grid, stamp=stamp) -> None:
+            stamp[0] += 1
+            g.insert(points, origins, float(stamp[0]))
+
+        ours = median_time(insert, repeats=repeats)
+        rows.append({"stage": "grid insert", "method": f"numba, {label}",
+                     "settings": "20,000 rays, 5 cm cells, office, map already built",
+                     "median_s": ours, "error": None, "compile_s": compile_s,
+                     "octomap_ratio": octomap_s / ours,
+                     "peers": {"octomap 0.05 m": {"median_s": octomap_s}}})
+    return rows
+
+
+def field_rows(grid: HeightGrid, quick: bool) -> list[dict]:
+    """EDT of a 20 m x 20 m window around the office (blocked = not known free)."""
+    layers = grid.layers((-8.0, -10.0, 12.0, 10.0))
+    seg = segment(layers, ROBOT)
+    blocked = seg.state != 1
+    assert blocked.shape == (400, 400)
+    first = first_call_time(lambda: distance_transform(blocked))
+    ours = median_time(lambda: distance_transform(blocked), repeats=5 if quick else 30)
+    scipy_s = median_time(lambda: ndimage.distance_transform_edt(~blocked, return_indices=True),
+                          repeats=3 if quick else 10)
+    distance, _ = distance_transform(blocked)
+    error = float(np.abs(distance - ndimage.distance_transform_edt(~blocked)).max())
+    return [{"stage": "distance field", "method": "numba Felzenszwalb-Huttenlocher",
+             "settings": "20 m x 20 m at 5 cm (400 x 400), with nearest index",
+             "median_s": ours, "error": error, "error_unit": "cells (max vs scipy)",
+             "compile_s": first, "peers": {"scipy edt": {"median_s": scipy_s}}}]
+
+
+def query_rows(grid: HeightGrid, scans, quick: bool) -> list[dict]:
+    clock = [grid.stamp]
+    obstacles = ObstacleMap(ROBOT, max_age=1e9, clock=lambda: clock[0])
+    obstacles.update(grid)
+    q = np.random.default_rng(1).uniform([-1.0, -2.5], [5.0, 2.5], (1_000_000, 2))
+    obstacles.distance(q[:10])
+    batch = median_time(lambda: obstacles.distance(q), repeats=3 if quick else 10)
+    rows = [{"stage": "distance query", "method": "distance(points), numba",
+             "settings": "batch of 1e6 points", "median_s": batch / len(q), "error": None,
+             "peers": {}}]
+    stop = threading.Event()
+
+    def mapper() -> None:
+        k = 1000
+        while not stop.is_set():
+            for points, origins, _, _ in scans:
+                if stop.is_set():
+                    break
+                k += 1
+                grid.insert(points, origins, float(k))
+
+    thread = threading.Thread(target=mapper)
+    thread.start()
+    try:
+        obstacles.nearest(1.0, 0.5)
+        times = np.empty(20_000 if quick else 200_000)
+        for i in range(len(times)):
+            start = time.perf_counter()
+            obstacles.nearest(1.0, 0.5)
+            times[i] = time.perf_counter() - start
+    finally:
+        stop.set()
+        thread.join()
+    rows.append({"stage": "nearest query", "method": "nearest(x, y) from Python",
+                 "settings": "while another thread inserts scans",
+                 "median_s": float(np.median(times)), "p99_s": float(np.percentile(times, 99)),
+                 "error": None, "peers": {}})
+    return rows
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Every row of this module (see its docstring)."""
+    scene, scans = office_rays(quick)
+    config = GridConfig()
+    grid = HeightGrid(config)
+    for k, (points, origins, _, _) in enumerate(scans):
+        grid.insert(points, origins, float(k))
+    tree, octo_insert = octomap_peer(scans)
+    for scan in scans:
+        octo_insert(scan)
+    rows = accuracy_rows(scene, scans, grid, octomap_f1(tree, scene, scans))
+    rows += insertion_rows(scans, config, quick)
+    rows += field_rows(grid, quick)
+    rows += query_rows(grid, scans, quick)
+    return rows
+
+
+if __name__ == "__main__":
+    from benchmarks.report import markdown_table
+
+    table = run()
+    print(markdown_table(table))
+    for row in table:
+        extra = {k: v for k, v in row.items() if k not in
+                 ("stage", "method", "settings", "median_s", "error", "error_unit", "peers")}
+        print(row["stage"], "|", row["method"], "|", extra)
