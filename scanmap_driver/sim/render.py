@@ -129,6 +129,8 @@ class Renderer:
         self._disk_columns = self._find_disk_columns()
         self._scene_rows = np.arange(0, self.model.camera.height, self.scene_step)
         self._scene_directions = np.ascontiguousarray(self.rays.directions[self._scene_rows])
+        self._disk_directions = np.ascontiguousarray(
+            self.rays.directions[:, self._disk_columns:])
 
     def _find_disk_columns(self) -> int:
         """First image column where the disk (or its blur) can appear at any heading."""
@@ -185,7 +187,8 @@ class Renderer:
                                 model.camera.height)
         stripe = self._stripe(plan, hits, rows, base, heading, row_time)
         laser = self._laser_layer(plan, stripe, base, row_time, rng)
-        radiance += laser[:, :, None] * np.array(self.laser.crosstalk, dtype=np.float32)
+        for channel, share in enumerate(self.laser.crosstalk):
+            radiance[:, :, channel] += np.float32(share) * laser
         scene_t = np.repeat(hits.t, self.scene_step, axis=0)[:model.camera.height]
         covered = self._add_disk(radiance, scene_t, base_head, offsets)
         mask = (laser * self.camera.scale >= self.laser.mask_threshold) & (covered < 0.5)
@@ -244,7 +247,7 @@ class Renderer:
         if first >= width:
             return coverage
         rotation, shift = base_head[:3, :3], base_head[:3, 3]
-        directions = rotate(self.rays.directions[:, first:].reshape(-1, 3), rotation)
+        directions = rotate(self._disk_directions.reshape(-1, 3), rotation)
         origin = rotation @ self.rays.centre + shift
         t = disk_distance(self.model.encoder, origin, directions).reshape(height, -1)
         on_disk = t < scene_t[:, first:]
@@ -255,8 +258,7 @@ class Renderer:
         layer[on_disk, 0] = DISK_LIGHT * disk_albedo(self.model.encoder, points)
         layer[on_disk, 1] = 1.0
         depth_t = np.where(on_disk, t, scene_t[:, first:])
-        layer = blur_along_flow(layer, self._flow(depth_t, self.rays.directions[:, first:]),
-                                offsets)
+        layer = blur_along_flow(layer, self._flow(depth_t, self._disk_directions), offsets)
         depth = float(np.median(t[on_disk]))
         diameter = float(defocus_diameter(depth, self.model.camera.fx, self.camera.aperture,
                                           self.camera.focus_distance))
