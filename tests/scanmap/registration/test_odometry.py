@@ -84,7 +84,7 @@ def test_after_repeated_failures_the_map_restarts():
 
 def test_simulated_office_from_the_simulator():
     sim = pytest.importorskip("scanmap_driver.sim")
-    scans = list(sim.ideal_scans(sim.builtin_scene("office"), seed=3, scans=4))
+    scans = list(sim.ideal_scans(sim.builtin_scene("office"), seed=3, scans=3))
     registration = ScanOdometry(initial_pose=scans[0].pose_start)
     for ideal in scans:
         assert registration.register(ideal.scan).ok
