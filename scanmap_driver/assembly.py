@@ -106,6 +106,25 @@ class ScanAssembler:
             missing_lines=int(stripe.peak.size - found.sum())))
         return float(result.heading) if result.ok else None
 
+    def observations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every peak so far as (u, v, heading), unreadable frames' headings filled (or NaN).
+
+        The raw material of calibration: pixels and headings before triangulation.
+        """
+        if not self._frames:
+            empty = np.zeros(0)
+            return empty, empty, empty
+        headings = self._filled_headings()
+        counts = [f.lines.size for f in self._frames]
+        return (np.concatenate([f.lines for f in self._frames]),
+                np.concatenate([f.peaks for f in self._frames]),
+                np.repeat(headings, counts))
+
+    def _filled_headings(self) -> np.ndarray:
+        times = np.array([f.timestamp for f in self._frames])
+        ok = np.array([f.heading_ok for f in self._frames])
+        return fill_unreadable(self.headings, ok, times)
+
     def finish(self, index: int = 0, odom_start: np.ndarray | None = None,
                odom_end: np.ndarray | None = None) -> tuple[Scan, ScanSummary]:
         """The scan of the frames added so far, and its summary."""
@@ -118,7 +137,7 @@ class ScanAssembler:
         if not ok.any():
             raise ScanError(f"scan {index}: the encoder disk was unreadable in all "
                             f"{len(self._frames)} frames")
-        headings = fill_unreadable(self.headings, ok, times)
+        headings = self._filled_headings()
         covered = coverage(headings)
         summary.headings_covered_deg = float(np.degrees(covered.covered))
         summary.complete = bool(covered.complete)

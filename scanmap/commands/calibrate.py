@@ -1,9 +1,10 @@
 """`scanmap calibrate TARGET ...`: calibrate a part of the scanner into a scanner model file.
 
-Each target is a subcommand of its own (`camera` now; the laser plane from a wall later),
-added in `register` beside the others. They all write a `scanmap.scanner/1` file: an
-existing one is updated in place (only the calibrated part changes), otherwise a new one
-is made from the reference scanner with the calibrated part.
+Each target is a subcommand of its own (`camera`: intrinsics from board images; `wall`:
+the paper's wall calibration from a recorded scan), added in `register` beside the
+others. They all write a `scanmap.scanner/1` file: an existing one is updated in place
+(only the calibrated part changes), otherwise a new one is made from the reference scanner
+with the calibrated part.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import argparse
 import re
 from pathlib import Path
+
+import numpy as np
 
 from scanmap_driver import CalibrationError, ScannerModel, reference_scanner
 from scanmap_driver.calibration import CharucoBoard, Chessboard, calibrate_camera
@@ -27,6 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=lambda _args: _print_help(parser))
     targets = parser.add_subparsers(dest="target", metavar="TARGET")
     _register_camera(targets)
+    _register_wall(targets)
 
 
 def _print_help(parser: argparse.ArgumentParser) -> int:
@@ -104,3 +108,70 @@ def _target_model(path: Path) -> tuple[ScannerModel, bool]:
         raise CalibrationError(
             f"{path}: exists and is not a scanner model ({FORMAT}); not overwriting it")
     return ScannerModel.from_dict(data, source=str(path)), True
+
+
+def _register_wall(targets: argparse._SubParsersAction) -> None:
+    parser = targets.add_parser(
+        "wall", help="laser plane, camera tilt, separation and encoder zero from wall scans",
+        description="The paper's calibration: scan a flat wall that the robot faces at a "
+                    "measured distance; solve until the wall is vertical, flat and at that "
+                    "distance. Two recordings, near and far, pin the camera tilt apart from "
+                    "its height. Refuses to write what the data do not determine.")
+    parser.add_argument("recordings", type=Path, nargs="+", metavar="RECORDING",
+                        help="recording folder(s), each holding a wall scan")
+    parser.add_argument("--distance", type=float, nargs="+", required=True, metavar="M",
+                        help="distance from the scanner axis to the wall (m), one per "
+                             "recording")
+    parser.add_argument("--scanner", type=Path, default=None, metavar="FILE",
+                        help="starting model (default: the first recording's own)")
+    parser.add_argument("--out", type=Path, required=True, metavar="FILE")
+    parser.set_defaults(func=_wall)
+
+
+def _wall(args: argparse.Namespace) -> int:
+    from scanmap_driver.calibration.wall import apply_corrections
+    from scanmap_driver.recording import Recording
+
+    if len(args.distance) != len(args.recordings):
+        raise CalibrationError(f"calibrate wall: {len(args.recordings)} recordings but "
+                               f"{len(args.distance)} distances")
+    recordings = [Recording.open(path) for path in args.recordings]
+    start = ScannerModel.load(args.scanner) if args.scanner else recordings[0].model
+    model, result = start, None
+    for _ in range(3):  # headings depend on the camera's pose: decode again with the fit
+        result = _fit_wall(recordings, args.distance, start, model)
+        model = apply_corrections(start, result.values)
+    print(f"{result.wall_points} wall and {result.floor_points} floor points, "
+          f"residual rms {result.rms * 1000:.1f} mm")
+    for name, value in result.values.items():
+        mark = "  (weakly determined)" if name in result.undetermined else ""
+        print(f"  {name:20s} {value:+.5f} +- {result.sigmas[name]:.1e}{mark}")
+    print("  point uncertainty (p95): " + ", ".join(
+        f"{band}: {sigma * 1000:.1f} mm" for band, sigma in result.point_sigma.items()))
+    for note in result.notes:
+        print(f"  note: {note}")
+    calibrated = result.require_supported()
+    calibrated.save(args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _fit_wall(recordings, distances, start: ScannerModel, decoding: ScannerModel):
+    """Fit corrections to `start` from the first scan of each recording, decoded with
+    `decoding`'s geometry."""
+    from scanmap_driver.assembly import ScanAssembler
+    from scanmap_driver.calibration import calibrate_wall
+
+    parts = []
+    for recording, distance in zip(recordings, distances, strict=True):
+        assembler = ScanAssembler(decoding)
+        for frame in recording.frames(recording.scans[0].index):
+            assembler.add_frame(frame.image, frame.time)
+        u, v, heading = assembler.observations()
+        parts.append((u, v, heading, np.full(u.size, distance)))
+    u, v, heading, distance = (np.concatenate(k) for k in zip(*parts, strict=True))
+    # Headings were decoded with `decoding`, whose encoder zero already holds the fitted
+    # offset; remove it so the fit stays relative to `start`.
+    heading = heading - (decoding.encoder.zero_offset - start.encoder.zero_offset)
+    known = np.isfinite(heading)
+    return calibrate_wall(start, u[known], v[known], heading[known], distance[known])
