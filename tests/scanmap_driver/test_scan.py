@@ -66,3 +66,12 @@ def test_select_keeps_metadata():
     scan = make_scan()
     sub = scan.select(scan.frame_index == 2)
     assert len(sub) == 10 and sub.index == 7
+
+
+def test_written_files_get_the_usual_permissions(tmp_path):
+    import os
+
+    umask = os.umask(0)
+    os.umask(umask)
+    make_scan().save(tmp_path / "s.npz")
+    assert (tmp_path / "s.npz").stat().st_mode & 0o777 == 0o666 & ~umask
