@@ -13,8 +13,6 @@ import argparse
 import re
 from pathlib import Path
 
-import numpy as np
-
 from scanmap_driver import CalibrationError, ScannerModel, reference_scanner
 from scanmap_driver.calibration import CharucoBoard, Chessboard, calibrate_camera
 from scanmap_driver.files import read_json
@@ -129,7 +127,7 @@ def _register_wall(targets: argparse._SubParsersAction) -> None:
 
 
 def _wall(args: argparse.Namespace) -> int:
-    from scanmap_driver.calibration.wall import apply_corrections
+    from scanmap_driver.calibration.wall import calibrate_wall_recordings
     from scanmap_driver.recording import Recording
 
     if len(args.distance) != len(args.recordings):
@@ -137,10 +135,7 @@ def _wall(args: argparse.Namespace) -> int:
                                f"{len(args.distance)} distances")
     recordings = [Recording.open(path) for path in args.recordings]
     start = ScannerModel.load(args.scanner) if args.scanner else recordings[0].model
-    model, result = start, None
-    for _ in range(3):  # headings depend on the camera's pose: decode again with the fit
-        result = _fit_wall(recordings, args.distance, start, model)
-        model = apply_corrections(start, result.values)
+    result = calibrate_wall_recordings(recordings, args.distance, start)
     print(f"{result.wall_points} wall and {result.floor_points} floor points, "
           f"residual rms {result.rms * 1000:.1f} mm")
     for name, value in result.values.items():
@@ -154,24 +149,3 @@ def _wall(args: argparse.Namespace) -> int:
     calibrated.save(args.out)
     print(f"wrote {args.out}")
     return 0
-
-
-def _fit_wall(recordings, distances, start: ScannerModel, decoding: ScannerModel):
-    """Fit corrections to `start` from the first scan of each recording, decoded with
-    `decoding`'s geometry."""
-    from scanmap_driver.assembly import ScanAssembler
-    from scanmap_driver.calibration import calibrate_wall
-
-    parts = []
-    for recording, distance in zip(recordings, distances, strict=True):
-        assembler = ScanAssembler(decoding)
-        for frame in recording.frames(recording.scans[0].index):
-            assembler.add_frame(frame.image, frame.time)
-        u, v, heading = assembler.observations()
-        parts.append((u, v, heading, np.full(u.size, distance)))
-    u, v, heading, distance = (np.concatenate(k) for k in zip(*parts, strict=True))
-    # Headings were decoded with `decoding`, whose encoder zero already holds the fitted
-    # offset; remove it so the fit stays relative to `start`.
-    heading = heading - (decoding.encoder.zero_offset - start.encoder.zero_offset)
-    known = np.isfinite(heading)
-    return calibrate_wall(start, u[known], v[known], heading[known], distance[known])

@@ -241,3 +241,30 @@ def point_uncertainty(model: ScannerModel, names: tuple[str, ...], x: np.ndarray
         if inside.any():
             out[band] = float(np.sqrt(np.percentile(variance[inside], 95)))
     return out
+
+
+def calibrate_wall_recordings(recordings, distances, start: ScannerModel,
+                              rounds: int = 3) -> WallCalibration:
+    """Wall calibration from the first scan of each recording (one distance each).
+
+    Headings are decoded from the disk through the camera's geometry, which the fit
+    changes: each round decodes the frames again with the latest model.
+    """
+    from ..assembly import ScanAssembler
+
+    decoding, result = start, None
+    for _ in range(rounds):
+        parts = []
+        for recording, distance in zip(recordings, distances, strict=True):
+            assembler = ScanAssembler(decoding)
+            for frame in recording.frames(recording.scans[0].index):
+                assembler.add_frame(frame.image, frame.time)
+            u, v, heading = assembler.observations()
+            parts.append((u, v, heading, np.full(u.size, float(distance))))
+        u, v, heading, distance = (np.concatenate(k) for k in zip(*parts, strict=True))
+        # The decoding model's zero offset holds the last fit; keep the fit relative to start.
+        heading = heading - (decoding.encoder.zero_offset - start.encoder.zero_offset)
+        known = np.isfinite(heading)
+        result = calibrate_wall(start, u[known], v[known], heading[known], distance[known])
+        decoding = result.model
+    return result
