@@ -64,7 +64,7 @@ class GridConfig:
     l_miss: float = 0.4
     l_max: float = 3.5
     max_misses: int = 5
-    bundle_run: int = 8
+    bundle_run: int = 3
 
     def __post_init__(self) -> None:
         positive = ("resolution", "extent", "mask_dz", "merge_gap", "max_range", "l_hit",

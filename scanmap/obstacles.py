@@ -147,15 +147,21 @@ def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, points, geo):
     """(clearance, kind of what limits it, obstacle distance, obstacle x, obstacle y)."""
     clearance, _, _, kind = query_point(qx, qy, state, nearest_blocked, points, geo, True)
     d, px, py, _ = query_point(qx, qy, state, nearest_obstacle, points, geo, False)
+    if d <= clearance:  # the two refinements may settle on different cells
+        clearance, kind = d, OBSTACLE
     return clearance, kind, d, px, py
 
 
 @njit(cache=True, nogil=True)
-def query_points(xy, state, nearest, points, geo, unknown_blocks, out):
-    """Distance of each (x, y) row (see query_point)."""
+def query_points(xy, state, nearest_blocked, nearest_obstacle, points, geo, unknown_blocks,
+                 out):
+    """Clearance (unknown_blocks) or obstacle distance of each (x, y) row (see query_one)."""
     for i in range(xy.shape[0]):
-        out[i] = query_point(xy[i, 0], xy[i, 1], state, nearest, points, geo,
-                             unknown_blocks)[0]
+        d = query_point(xy[i, 0], xy[i, 1], state, nearest_obstacle, points, geo, False)[0]
+        if unknown_blocks:
+            d = min(d, query_point(xy[i, 0], xy[i, 1], state, nearest_blocked, points, geo,
+                                   True)[0])
+        out[i] = d
 
 
 @njit(cache=True, nogil=True)
@@ -291,8 +297,8 @@ class ObstacleSnapshot:
         xy = np.ascontiguousarray(np.asarray(points, dtype=np.float64)[:, :2])
         out = np.empty(len(xy))
         s = self.segmentation
-        nearest = self.nearest_blocked if unknown_blocks else self.nearest_obstacle
-        query_points(xy, s.state, nearest, s.points, self.geometry, unknown_blocks, out)
+        query_points(xy, s.state, self.nearest_blocked, self.nearest_obstacle, s.points,
+                     self.geometry, unknown_blocks, out)
         return out
 
 

@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from scanmap.floor import FREE, OBSTACLE, UNKNOWN, RobotShape
+from scanmap.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
 from scanmap.grid import GridConfig, HeightGrid
-from scanmap.obstacles import ObstacleMap, Status
+from scanmap.obstacles import ObstacleMap, ObstacleSnapshot, Status
 from scanmap_driver.errors import MapError
 
 from . import scenes as S
@@ -189,10 +189,28 @@ def test_clearance_of_circle_and_polygon_footprints(room):
         c, s = math.cos(yaw), math.sin(yaw)
         in_map = rectangle @ np.array([[c, s], [-s, c]]) + near_table[:2]
         assert answer.margin == pytest.approx(polygon_margin_reference(seg, in_map), abs=1e-4)
-    assert obstacles.clearance(near_table, rectangle).collision  # reaches into the table
-    assert not obstacles.clearance((*near_table[:2], math.pi / 2), rectangle).collision
     with pytest.raises(MapError):
         obstacles.clearance(near_table, np.zeros((2, 2)))
+
+
+def test_a_footprint_reaching_an_obstacle_collides_and_turned_away_clears():
+    """A known-free 2 m square with one obstacle point at (0.5, 0)."""
+    state = np.full((40, 40), FREE, np.uint8)
+    points = np.zeros((40, 40, 2), np.float32)
+    state[20, 30] = OBSTACLE
+    points[20, 30] = (0.5, 0.0)
+    seg = Segmentation(origin=(-1.0, -1.0), resolution=0.05, robot=ROBOT,
+                       floor_height=np.zeros((40, 40), np.float32), is_floor=state == FREE,
+                       planes=(), state=state, points=points,
+                       band_logodds=np.zeros((40, 40), np.float32), updated=np.zeros((40, 40)))
+    obstacles = ObstacleMap(ROBOT, max_age=1.0, clock=lambda: 0.0)
+    obstacles.publish(ObstacleSnapshot.from_segmentation(seg, 0.0))
+    rectangle = np.array([[0.6, 0.1], [-0.2, 0.1], [-0.2, -0.1], [0.6, -0.1]])
+    straight = obstacles.clearance((0.0, 0.0, 0.0), rectangle)
+    assert straight.collision and straight.margin == pytest.approx(-0.1)
+    turned = obstacles.clearance((0.0, 0.0, math.pi / 2), rectangle)
+    assert not turned.collision and turned.margin == pytest.approx(0.4)
+    assert turned.status == Status.UNKNOWN  # the window's edge (unknown) is as near
 
 
 def test_queries_from_another_thread_see_whole_snapshots():
