@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import os
+
+# Small matrix products must not fan out over every core of a shared 2-core machine.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 from pathlib import Path
 
 import pytest
