@@ -7,7 +7,7 @@ the robot's step height, so a ramp or a low sill joins the floor, while a table 
 the top of a box (cut off by its vertical faces) does not. Planes are then fitted to
 the floor region by sequential RANSAC and reported (the floor, a ramp, a raised part).
 Cells without observed floor (under objects, under occluded table tops) take the height
-of the nearest floor cell within `fill_radius`.
+of the nearest floor cell within `fill_radius`, and beyond it that of the largest plane.
 
 Obstacles (DESIGN.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known, nothing occupies the band,
@@ -58,18 +58,17 @@ class FloorParams:
     thickness: most vertical extent (m) of a level that can be floor; clearance: free
     height above it (m) that a floor cell needs.
     plane_tolerance: RANSAC inlier distance (m). max_slope: steepest floor plane (rad).
-    min_plane_cells: support of a reported plane. fill_radius: how far (m) a floor height
-    is carried into cells without observed floor. detect: False for data that never see
-    the floor (a 2-D laser: every point at one height), which then rely on the
-    `fallback_floor` of `segment`. min_coverage: fraction of the robot band's height
-    bins that rays must have seen free for a cell to be FREE (as Nav2's
-    voxel layer tolerates unknown voxels in a column). This scanner rarely sees every
-    bin of a column (rays at 0.7-1 m over a cell 2 m away end beyond 4 m, returning
-    nothing), so 1.0 leaves most of a room unknown; below 1 a thin hanging object never
-    hit from above (a table top fits in one 5 cm bin) can hide in the unseen bins.
-    min_coverage_no_floor: the same where no floor was seen in or next to the cell (a
-    cell inside or under an object, its floor height carried from farther).
-    overhang_reach: how far (m) the heights of an overhanging obstacle (a table top seen
+    min_plane_cells: support of a reported plane. fill_radius: how far (m) the height of
+    a floor cell is carried into cells without observed floor (the largest floor plane
+    gives it beyond). detect: False for data that never see the floor (a 2-D laser:
+    every point at one height), which then rely on the `fallback_floor` of `segment`.
+    min_coverage: fraction of the robot band's height bins that rays must have seen free
+    for a cell to be FREE (as Nav2's voxel layer tolerates unknown voxels in a column).
+    This scanner rarely sees every bin of a column (rays at 0.7-1 m over a cell 2 m away
+    end beyond 4 m, returning nothing), so 1.0 leaves most of a room unknown; below 1, a
+    thin object hanging in unseen heights is caught by the suspect rules of
+    `classify_band` instead.
+    overhang_reach: how far (m) the heights of an overhanging board (a table top seen
     only at its rim: this scanner's laser, 0.5 m up, never lights a top above it) are
     assumed to extend over cells that never saw those heights; overhang_thickness: the
     thickest level taken for such a board (a table top, a seat, a shelf).
@@ -83,7 +82,6 @@ class FloorParams:
     max_planes: int = 4
     fill_radius: float = 1.0
     min_coverage: float = 0.5
-    min_coverage_no_floor: float = 0.9
     overhang_reach: float = 0.6
     overhang_thickness: float = 0.1
     ransac_iterations: int = 200
@@ -272,8 +270,8 @@ def _spread_overhangs(hanging: np.ndarray, gaps: np.ndarray, state: np.ndarray,
 
 @njit(cache=True, nogil=True)
 def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
-                  floor_height: np.ndarray, floor_seen: np.ndarray, step: float,
-                  height: float, z_min: float, mask_dz: float, coverage: np.ndarray,
+                  floor_height: np.ndarray, step: float, height: float, z_min: float,
+                  mask_dz: float, coverage: float,
                   reach: int, thin: float, origin_x: float, origin_y: float, res: float,
                   state: np.ndarray, points: np.ndarray, band_logodds: np.ndarray,
                   covered: np.ndarray) -> None:
@@ -282,14 +280,11 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
 
     Heights no ray saw anywhere in the window (above the camera) are left out: nothing
     can be known there. A cell without anything in its band is FREE when rays saw at
-    least `coverage[0]` of the band's height bins free (`coverage[1]` where no floor was
-    seen in or next to the cell: under or inside objects), and none of the heights it
-    has not seen is
-    suspect: within two bins of an obstacle in a neighbouring cell, or of an overhanging
-    board (the lowest level in its cell, at most `thin` thick, free space seen under it)
-    within `reach` cells
-    through cells that have not seen those heights either but saw above and below them
-    (`_spread_overhangs`).
+    least `coverage` of the band's height bins free, and none of the heights it has not
+    seen is suspect: within two bins of an obstacle in a neighbouring cell, or of an
+    overhanging board (the lowest level in its cell, at most `thin` thick, free space
+    seen under it, continued in two neighbours) within `reach` cells through cells that
+    have not seen those heights either but saw above and below them.
     """
     ny, nx = nlev.shape
     occupied = np.zeros((ny, nx), np.uint64)  # band heights held by obstacles, per cell
@@ -341,15 +336,12 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
             if state[y, x] == OBSTACLE or np.isnan(f):
                 continue
             band = gk.height_mask(f + step, f + height - 1e-6, z_min, mask_dz) & observable
-            need = coverage[1]
             suspect = overhang[y, x]
             for yy in range(max(y - 1, 0), min(y + 2, ny)):
                 for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                    if floor_seen[yy, xx]:
-                        need = coverage[0]
                     suspect |= _widen(occupied[yy, xx])
             covered[y, x] = unseen[y, x] & overhang[y, x] != 0
-            if _popcount(band & seen[y, x]) >= need * _popcount(band) \
+            if _popcount(band & seen[y, x]) >= max(coverage * _popcount(band), 1.0) \
                     and unseen[y, x] & suspect == 0:
                 state[y, x] = FREE
 
@@ -439,15 +431,18 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         distance, nearest = distance_transform(is_floor)
         fill = ~is_floor & (distance * res <= params.fill_radius)
         floor_height[fill] = floor_height.reshape(-1)[nearest[fill]]
+    if planes:  # farther out, the largest floor plane
+        far = np.isnan(floor_height)
+        floor_height[far] = planes[0].height_at(*np.meshgrid(xs, ys))[far]
     if fallback_floor is not None:
         floor_height[np.isnan(floor_height)] = fallback_floor
     state = np.empty((ny, nx), np.uint8)
     points = np.empty((ny, nx, 2), np.float32)
     band_logodds = np.empty((ny, nx), np.float32)
-    coverage = np.array([params.min_coverage, params.min_coverage_no_floor])
     covered = np.zeros((ny, nx), np.bool_)
-    classify_band(layers.levels, layers.nlev, layers.seen, floor_height, is_floor,
-                  robot.step_height, robot.height, layers.z_min, layers.mask_dz, coverage,
+    classify_band(layers.levels, layers.nlev, layers.seen, floor_height,
+                  robot.step_height, robot.height, layers.z_min, layers.mask_dz,
+                  params.min_coverage,
                   round(params.overhang_reach / res), params.overhang_thickness,
                   layers.origin[0], layers.origin[1], res, state, points, band_logodds, covered)
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,

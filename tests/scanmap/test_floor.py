@@ -158,7 +158,7 @@ def test_a_2d_laser_map_needs_an_assumed_floor():
     wall = np.column_stack([2.0 * np.cos(angles), 2.0 * np.sin(angles), np.full(360, 0.3)])
     grid.insert(wall, np.array([0.0, 0.0, 0.3]), 0.0)
     layers = grid.layers((-2.5, -2.5, 2.5, 2.5))
-    flat = FloorParams(min_coverage=0.0, min_coverage_no_floor=0.0, detect=False)
+    flat = FloorParams(min_coverage=0.0, detect=False)
     seg = segment(layers, params=flat, fallback_floor=0.0)
     xs, ys = layers.cell_centers()
     r = np.hypot(*np.meshgrid(xs, ys))
