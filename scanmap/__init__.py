@@ -18,10 +18,13 @@ from scanmap_driver import (
     reference_scanner,
 )
 
+from .mapper import Mapper
+
 __all__ = [
     "CalibrationError",
     "DeviceError",
     "MapError",
+    "Mapper",
     "RecordingError",
     "RegistrationError",
     "Scan",

@@ -1,0 +1,97 @@
+"""The error measures of `scanmap map` reports, on cases whose answer is known."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from scanmap import evaluation
+from scanmap.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
+from scanmap_driver.processing import recording_scans
+from scanmap_driver.recording import Recording
+from scanmap_driver.sim import builtin_scene, truth_raster
+from scanmap_driver.sim import raster as truth
+from scanmap_driver.sim.truth import ScanTruth, truth_path
+from scanmap_driver.transforms import se2_to_pose
+
+
+def segmentation_of(raster, origin=None) -> Segmentation:
+    """A perfect map: the raster's classes as states (outside -> unknown)."""
+    state = np.full(raster.classes.shape, UNKNOWN, np.uint8)
+    state[raster.classes == truth.FLOOR] = FREE
+    state[raster.classes == truth.OBSTACLE] = OBSTACLE
+    ny, nx = state.shape
+    nan = np.full((ny, nx), np.nan, np.float32)
+    return Segmentation(origin=tuple(raster.origin if origin is None else origin),
+                        resolution=raster.resolution, robot=RobotShape(), floor_height=nan,
+                        is_floor=state == FREE, planes=(), state=state,
+                        points=np.zeros((ny, nx, 2), np.float32), band_logodds=nan,
+                        updated=np.zeros((ny, nx)))
+
+
+@pytest.fixture(scope="module")
+def office_raster():
+    return truth_raster(builtin_scene("office"))
+
+
+def test_a_perfect_map_scores_one(office_raster):
+    errors = evaluation.map_errors(segmentation_of(office_raster), office_raster, np.eye(4))
+    for key in ("obstacle_precision", "obstacle_recall", "obstacle_f1", "obstacle_coverage",
+                "free_precision"):
+        assert errors[key] == 1.0, key
+    assert errors["free_cells_on_obstacles"] == 0
+
+
+def test_a_perfect_map_in_a_turned_frame_scores_one(office_raster):
+    """The map frame turned 90 deg in the world: the grid is the transposed raster."""
+    turned = dataclasses.replace(office_raster, classes=office_raster.classes.T[::-1].copy(),
+                                 origin=np.zeros(2))
+    nx = office_raster.classes.shape[1]
+    # world (x, y) = (-y', x') + (origin x + nx cells, origin y): map cell (r', c') is
+    # raster cell (c', nx - 1 - r')
+    world_from_map = se2_to_pose(office_raster.origin[0] + nx * office_raster.resolution,
+                                 office_raster.origin[1], np.pi / 2)
+    errors = evaluation.map_errors(segmentation_of(turned), office_raster, world_from_map)
+    assert errors["obstacle_f1"] == pytest.approx(1.0)
+    assert errors["free_precision"] == pytest.approx(1.0)
+
+
+def test_a_map_three_cells_off_loses_precision_and_claims_free_on_obstacles(office_raster):
+    shifted = office_raster.origin + 3 * office_raster.resolution
+    errors = evaluation.map_errors(segmentation_of(office_raster, shifted), office_raster,
+                                   np.eye(4))
+    assert errors["obstacle_precision"] < 0.8 and errors["obstacle_f1"] < 0.8
+    assert errors["free_cells_on_obstacles"] > 50 and errors["free_precision"] < 0.99
+
+
+def test_statistics_and_trajectory_errors_in_closed_form():
+    stats = evaluation.statistics(np.array([1.0, -2.0, 3.0, np.nan]))
+    assert stats == {"count": 3, "mean_abs": 2.0, "median_abs": 2.0,
+                     "p95_abs": pytest.approx(2.9), "max_abs": 3.0, "median": 1.0}
+    reference = np.array([se2_to_pose(x, 0.5 * x, 0.1 * x) for x in range(5)])
+    moved = se2_to_pose(3.0, -1.0, 0.7) @ reference  # the same path in another frame
+    errors = evaluation.trajectory_errors(moved, reference)
+    assert errors["ate_rmse"] < 1e-9 and errors["start_anchored_rmse"] < 1e-9
+    moved[2, 0, 3] += 0.1
+    assert evaluation.trajectory_errors(moved, reference)["start_anchored_rmse"] == \
+        pytest.approx(0.1 / np.sqrt(5))
+
+
+def test_range_and_heading_errors_see_a_known_bias(office_recording):
+    recording = Recording.open(office_recording)
+    scan, _, _ = next(recording_scans(recording))
+    scan_truth = ScanTruth.load(truth_path(office_recording, 0))
+    error, total = evaluation.range_errors(scan, scan_truth, recording.model)
+    assert error.size > 0.6 * total and np.median(np.abs(error)) < 0.005
+    radial = scan.points[:, :2] / np.hypot(*scan.points[:, :2].T)[:, None]
+    farther = dataclasses.replace(scan, points=scan.points + np.column_stack(
+        [0.02 * radial, np.zeros(len(scan))]).astype(np.float32))
+    biased, _ = evaluation.range_errors(farther, scan_truth, recording.model)
+    assert np.median(biased) == pytest.approx(np.median(error) + 0.02, abs=0.002)
+    headings = evaluation.heading_errors(scan, scan_truth)
+    assert np.abs(headings).max() < np.radians(0.5)
+    turned = dataclasses.replace(scan, heading=scan.heading + 0.01)
+    assert np.median(evaluation.heading_errors(turned, scan_truth)) == \
+        pytest.approx(np.median(headings) + 0.01, abs=1e-9)
