@@ -208,6 +208,17 @@ def map_scene(scene: Scene, poses: list[tuple[float, float, float]], grid, *, se
     return MappedScene(grid, np.vstack(points), np.concatenate(labels))
 
 
+def hit_cells(layers, mapped: MappedScene, labels: list[int]) -> np.ndarray:
+    """(ny, nx) cells of `layers` holding a hit on one of the labelled surfaces."""
+    sel = np.isin(mapped.labels, labels)
+    ix = np.floor((mapped.points[sel, 0] - layers.origin[0]) / layers.resolution).astype(int)
+    iy = np.floor((mapped.points[sel, 1] - layers.origin[1]) / layers.resolution).astype(int)
+    inside = (ix >= 0) & (ix < layers.shape[1]) & (iy >= 0) & (iy < layers.shape[0])
+    out = np.zeros(layers.shape, bool)
+    out[iy[inside], ix[inside]] = True
+    return out
+
+
 ROOM_POSES = [(0.0, 0.0, 0.0), (1.5, 1.5, 0.3), (-1.5, 1.5, 0.6), (-1.5, -1.5, 0.9),
               (1.5, -1.5, 1.2), (0.0, 2.2, 1.5), (2.2, 0.0, 1.8), (-2.2, 0.0, 2.1),
               (0.0, -2.2, 2.4), (1.0, -0.3, 2.7)]

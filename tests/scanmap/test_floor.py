@@ -139,11 +139,7 @@ def test_floor_precision_and_recall_on_the_furnished_room():
     xs, ys = layers.cell_centers()
     truth = S.truth_floor(scene, xs, ys, robot.step_height, robot.height)
     walkable = [k for k, b in enumerate(scene.boxes) if b.hi[2] <= robot.step_height]
-    on_floor = np.isin(mapped.labels, [S.FLOOR, *walkable])
-    ix = np.floor((mapped.points[on_floor, 0] - layers.origin[0]) / 0.05).astype(int)
-    iy = np.floor((mapped.points[on_floor, 1] - layers.origin[1]) / 0.05).astype(int)
-    floor_seen = np.zeros(layers.shape, bool)
-    floor_seen[iy, ix] = True
+    floor_seen = S.hit_cells(layers, mapped, [S.FLOOR, *walkable])
     predicted = seg.is_floor
     precision = (predicted & truth).sum() / predicted.sum()
     recall = (predicted & truth & floor_seen).sum() / (truth & floor_seen).sum()

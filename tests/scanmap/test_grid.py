@@ -33,22 +33,11 @@ def box_cells(layers, box: S.Box) -> tuple[np.ndarray, np.ndarray]:
     return np.nonzero(inside)
 
 
-def hit_mask(layers, mapped: S.MappedScene, labels: list[int]) -> np.ndarray:
-    """Cells holding a hit on one of the labelled surfaces."""
-    sel = np.isin(mapped.labels, labels)
-    ix = np.floor((mapped.points[sel, 0] - layers.origin[0]) / layers.resolution).astype(int)
-    iy = np.floor((mapped.points[sel, 1] - layers.origin[1]) / layers.resolution).astype(int)
-    inside = (ix >= 0) & (ix < layers.shape[1]) & (iy >= 0) & (iy < layers.shape[0])
-    out = np.zeros(layers.shape, bool)
-    out[iy[inside], ix[inside]] = True
-    return out
-
-
 def test_table_top_within_robot_height_is_an_obstacle_with_the_gap_under_it_seen(room):
     scene, mapped, layers, seg = room
     top = scene.boxes[4]
     rows, cols = box_cells(layers, top)
-    seen_top = hit_mask(layers, mapped, [4])[rows, cols]
+    seen_top = S.hit_cells(layers, mapped, [4])[rows, cols]
     assert seen_top.mean() > 0.8
     assert (seg.state[rows, cols][seen_top] == OBSTACLE).mean() >= 0.99
     assert not (seg.state[rows, cols] == FREE).any()  # never hit from above: unknown
@@ -77,7 +66,7 @@ def test_obstacle_f1_in_the_robot_band(room):
     truth = S.truth_obstacles(scene, xs, ys, ROBOT.step_height, ROBOT.height)
     band_boxes = [k for k, b in enumerate(scene.boxes)
                   if b.hi[2] > ROBOT.step_height and b.lo[2] < ROBOT.height]
-    seen = hit_mask(layers, mapped, band_boxes)  # truth cells some ray hit
+    seen = S.hit_cells(layers, mapped, band_boxes)  # truth cells some ray hit
     predicted = seg.state == OBSTACLE
     tp = (predicted & truth).sum()
     precision = tp / predicted.sum()
