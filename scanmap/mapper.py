@@ -25,10 +25,12 @@ from __future__ import annotations
 
 import collections
 import math
+import os
 import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -46,6 +48,9 @@ from .registration import RegistrationResult, ScanOdometry
 from .scan_motion import frame_poses
 from .stage_clock import StageClock
 from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from .mapping_thread import MappingThread
 
 _NO_POSE = np.full((4, 4), np.nan)
 
@@ -99,16 +104,16 @@ class Mapper:
         with self._lock:
             with clock.stage("register"):
                 result = self.registration.register(scan)
-            fused = result.ok and len(scan) > 0
-            stats = None
-            if fused:
-                with clock.stage("fuse"):
-                    stats = self._fuse(scan, result.pose)
             self._stamps.append(float(scan.stamp))
             self._poses.append(result.pose)
             self._index.append(int(scan.index))
             self._status.append(result.status.value)
             self._odometry.append(scan.odom_start if scan.has_odometry else _NO_POSE)
+            fused = result.ok and len(scan) > 0
+            stats = None
+            if fused:  # a MapError here (beyond the extent) leaves the pose recorded
+                with clock.stage("fuse"):
+                    stats = self._fuse(scan, result.pose)
         if fused and self.config.update_obstacles:
             with clock.stage("obstacles"):
                 self.obstacles.update(self.grid, self._obstacle_bounds())
@@ -147,7 +152,7 @@ class Mapper:
                 progress(updates[-1])
         return updates
 
-    def start(self, source: Iterable | None = None, capacity: int = 4):
+    def start(self, source: Iterable | None = None, capacity: int = 4) -> MappingThread:
         """Map in a background thread: scans from `source` (a `ContinuousScanning`, any
         iterable of scans) or pushed with `submit`. Returns the `MappingThread`."""
         from .mapping_thread import MappingThread
@@ -208,7 +213,8 @@ class Mapper:
                 np.concatenate([c for _, c in self._kept]))
 
     # -- files ---------------------------------------------------------------------------
-    def save(self, path, segmentation: Segmentation | None = None) -> None:
+    def save(self, path: str | os.PathLike[str], segmentation: Segmentation | None = None
+             ) -> None:
         """Write the whole map to one .npz, atomically; safe while mapping continues.
 
         segmentation: derived obstacle/floor layers to store too (e.g. `segment()`).
@@ -235,7 +241,8 @@ class Mapper:
             resume_points=resume, resume_sigma=sigma, points=points, point_colors=colours)
 
     @classmethod
-    def load(cls, path, *, clock: Callable[[], float] = time.monotonic, offline: bool = False,
+    def load(cls, path: str | os.PathLike[str], *, clock: Callable[[], float] = time.monotonic,
+             offline: bool = False,
              config: MapperConfig | None = None) -> Mapper:
         """A Mapper continuing the map saved at `path`.
 

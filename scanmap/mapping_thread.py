@@ -18,9 +18,13 @@ from __future__ import annotations
 import queue
 import threading
 from collections.abc import Iterable, Iterator
+from typing import TYPE_CHECKING
 
 from scanmap_driver.errors import MapError, ScanmapError
 from scanmap_driver.scan import Scan
+
+if TYPE_CHECKING:
+    from .mapper import Mapper
 
 _END = object()  # marks the end of submitted scans
 _POLL = 0.1  # s: how often a waiting thread looks at the stop flag
@@ -29,7 +33,8 @@ _POLL = 0.1  # s: how often a waiting thread looks at the stop flag
 class MappingThread:
     """Runs `mapper.add` on each scan in a background thread (see the module docstring)."""
 
-    def __init__(self, mapper, source: Iterable | None = None, capacity: int = 4) -> None:
+    def __init__(self, mapper: Mapper, source: Iterable | None = None, capacity: int = 4
+                 ) -> None:
         if capacity < 1:
             raise MapError(f"MappingThread.capacity: expected >= 1, got {capacity}")
         self.mapper = mapper

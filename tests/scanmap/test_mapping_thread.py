@@ -12,8 +12,16 @@ from scanmap.grid import GridConfig
 from scanmap.mapper_config import MapperConfig
 from scanmap.obstacles import Status
 from scanmap_driver import reference_scanner
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner import ContinuousScanning, ScanSettings
 from scanmap_driver.sim import builtin_scene, ideal_scans
+from scanmap_driver.sim.motor_model import MotorParameters
 from scanmap_driver.transforms import se2_to_pose
+
+from ..scanmap_driver.polling import wait_until
+from ..scanmap_driver.sim_rig import image_angle, rig
+
+FAST = MotorParameters(full_speed=2.0 * np.pi * 1.6)  # about 0.9 s per revolution
 
 
 @pytest.fixture(scope="module")
@@ -90,3 +98,61 @@ def test_stop_ends_a_waiting_thread_and_submit_says_why_it_cannot(scans):
     with pytest.raises(MapError, match="own source"):
         own.submit(scans[0])
     assert own.join(timeout=10)
+
+
+class RoomAssembler:
+    """Frames of the sim rig become points of a square room (4 m wide, walls to 1 m, floor
+    from 0.8 m), swept over the headings since the previous frame: a live scanner's
+    scans of a room, fast enough to run the real loop."""
+
+    HALF_SIDE = 2.0
+
+    def __init__(self) -> None:
+        self.times: list[float] = []
+        self.headings: list[float] = []
+
+    def add_frame(self, image: np.ndarray, timestamp: float) -> float:
+        self.times.append(timestamp)
+        self.headings.append(image_angle(image))
+        return self.headings[-1]
+
+    def finish(self, index: int = 0, odom_start=None, odom_end=None) -> tuple[Scan, int]:
+        headings = np.unwrap(self.headings)
+        parts = []
+        for k in range(1, len(headings)):
+            angle = np.linspace(headings[k - 1], headings[k], 40, endpoint=False)
+            c, s = np.cos(angle), np.sin(angle)
+            wall = self.HALF_SIDE / np.maximum(np.abs(c), np.abs(s))
+            ranges = np.concatenate([np.repeat(wall, 12), np.repeat(wall * 0.4, 3),
+                                     np.repeat(wall * 0.6, 3)])
+            heights = np.concatenate([np.tile(np.linspace(0.05, 1.0, 12), len(angle)),
+                                      np.zeros(6 * len(angle))])
+            turn = np.concatenate([np.repeat(angle, 12), np.repeat(angle, 3),
+                                   np.repeat(angle, 3)])
+            parts.append((k, np.column_stack([ranges * np.cos(turn), ranges * np.sin(turn),
+                                              heights])))
+        frame = np.concatenate([np.full(len(p), k) for k, p in parts])
+        points = np.vstack([p for _, p in parts])
+        scan = Scan(points=points, colors=np.zeros((len(points), 3), np.uint8),
+                    time=np.array(self.times)[frame], heading=headings[frame],
+                    frame_index=frame, range_sigma=np.full(len(points), 0.005), index=index,
+                    stamp=self.times[0])
+        return scan, len(self.times)
+
+
+def test_live_scans_from_the_scanner_are_mapped_while_queries_are_served():
+    """The real Scanner on the simulated firmware, scanning continuously; the mapper maps
+    in the background on the monotonic clock; when scanning stops the data go stale."""
+    with rig(ScanSettings(continuous=True), FAST) as r:
+        r.scanner.new_assembler = RoomAssembler
+        mapper = Mapper(reference_scanner(), MapperConfig(max_age=2.0))
+        mapper.warm_up()
+        with ContinuousScanning(r.scanner, capacity=2) as scanning:
+            mapping = mapper.start(scanning)
+            assert wait_until(lambda: mapping.mapped >= 3, 60.0)
+            answer = mapper.obstacles.nearest(0.0, 0.0)
+        assert mapping.join(timeout=10.0) and mapping.error is None
+    assert mapper.statuses[0] == "initialised" and "ok" in mapper.statuses[1:]
+    assert answer.status in (Status.OK, Status.UNKNOWN) and answer.age < 2.0
+    assert abs(answer.distance - RoomAssembler.HALF_SIDE) < 0.1  # the nearest wall
+    assert wait_until(lambda: mapper.obstacles.nearest(0.0, 0.0).status == Status.STALE, 5.0)
