@@ -82,90 +82,106 @@ class Clearance:
     status: Status
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _cell_point(k, qx, qy, state, points, geo):
-    """The point of blocked cell k nearest to the query: the measured obstacle point, or
-    the nearest point of an unknown cell's square."""
-    ox, oy, res, nx = geo[0], geo[1], geo[2], int(geo[3])
-    y, x = k // nx, k % nx
-    if state[y, x] == OBSTACLE:
-        return float(points[y, x, 0]), float(points[y, x, 1])
-    x0, y0 = ox + x * res, oy + y * res
-    return min(max(qx, x0), x0 + res), min(max(qy, y0), y0 + res)
+@njit(cache=True, nogil=True)
+def cell_boxes(state, points, geo, unknown_blocks) -> np.ndarray:
+    """(ny, nx, 4) boxes (x lo, y lo, x hi, y hi) to measure distances to, branch-free: an
+    obstacle cell's measured point, an unknown cell's square (with `unknown_blocks`), and
+    +inf elsewhere (clamping a query into it gives an infinite distance)."""
+    ny, nx = state.shape
+    boxes = np.full((ny, nx, 4), np.inf)
+    for y in range(ny):
+        for x in range(nx):
+            if state[y, x] == OBSTACLE:
+                boxes[y, x, 0] = boxes[y, x, 2] = points[y, x, 0]
+                boxes[y, x, 1] = boxes[y, x, 3] = points[y, x, 1]
+            elif state[y, x] == UNKNOWN and unknown_blocks:
+                boxes[y, x, 0] = geo[0] + x * geo[2]
+                boxes[y, x, 1] = geo[1] + y * geo[2]
+                boxes[y, x, 2] = boxes[y, x, 0] + geo[2]
+                boxes[y, x, 3] = boxes[y, x, 1] + geo[2]
+    return boxes
 
 
 @njit(cache=True, nogil=True, inline="always")
-def query_point(qx, qy, state, nearest, points, geo, unknown_blocks):
+def _clamp(q: float, lo: float, hi: float) -> float:
+    return min(max(q, lo), hi)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def query_point(qx, qy, boxes, nearest, state, geo, unknown_blocks):
     """(distance, point x, point y, kind) of the nearest obstacle to (qx, qy), or with
     `unknown_blocks` of the nearest cell not known free (beyond the window is unknown).
 
-    `nearest` is the matching distance field's nearest-cell index; the answer is refined
-    over the 3 x 3 cells around it, using the measured obstacle points.
+    `nearest` is the matching distance field's nearest-cell index and `boxes` the matching
+    `cell_boxes`; the answer is refined over the 3 x 3 cells around the field's nearest.
     """
     ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
     gx, gy = (qx - ox) / res, (qy - oy) / res
-    inside = 0.0 <= gx < nx and 0.0 <= gy < ny
-    if unknown_blocks and not inside:
-        return 0.0, qx, qy, UNKNOWN
-    best, bx, by, kind = np.inf, qx, qy, FREE
+    best, bx, by, kind = np.inf, qx, qy, FREE  # best: squared distance
     if unknown_blocks:
+        if not (0.0 <= gx < nx and 0.0 <= gy < ny):
+            return 0.0, qx, qy, UNKNOWN
         ix, iy = int(gx), int(gy)
         if state[iy, ix] != FREE:
-            px, py = _cell_point(iy * nx + ix, qx, qy, state, points, geo)
-            return 0.0, px, py, np.int64(state[iy, ix])
+            b = boxes[iy, ix]
+            return 0.0, _clamp(qx, b[0], b[2]), _clamp(qy, b[1], b[3]), np.int64(state[iy, ix])
         left, right, bottom, top = qx - ox, ox + nx * res - qx, qy - oy, oy + ny * res - qy
-        best, kind = min(left, right, bottom, top), UNKNOWN
-        if best == left:
+        edge = min(left, right, bottom, top)
+        best, kind = edge * edge, UNKNOWN
+        if edge == left:
             bx = ox
-        elif best == right:
+        elif edge == right:
             bx = ox + nx * res
-        elif best == bottom:
+        elif edge == bottom:
             by = oy
         else:
             by = oy + ny * res
-        k = nearest[iy, ix]
     else:
         ix = min(max(math.floor(gx), 0), nx - 1)
         iy = min(max(math.floor(gy), 0), ny - 1)
-        k = nearest[iy, ix]
+    k = nearest[iy, ix]
     if k >= 0:
         cy, cx = k // nx, k % nx
+        wy, wx = -1, -1
         for yy in range(max(cy - 1, 0), min(cy + 2, ny)):
             for xx in range(max(cx - 1, 0), min(cx + 2, nx)):
-                s = state[yy, xx]
-                if s == FREE or (s == UNKNOWN and not unknown_blocks):
-                    continue
-                px, py = _cell_point(yy * nx + xx, qx, qy, state, points, geo)
-                d = math.sqrt((px - qx) ** 2 + (py - qy) ** 2)
-                if d < best or (d == best and s == OBSTACLE):
-                    best, bx, by, kind = d, px, py, np.int64(s)
-    return best, bx, by, kind
+                b = boxes[yy, xx]
+                px, py = _clamp(qx, b[0], b[2]), _clamp(qy, b[1], b[3])
+                d = (px - qx) * (px - qx) + (py - qy) * (py - qy)
+                if d < best:
+                    best, bx, by, wy, wx = d, px, py, yy, xx
+        if wy >= 0:
+            kind = np.int64(state[wy, wx])
+    return math.sqrt(best), bx, by, kind
 
 
 @njit(cache=True, nogil=True)
-def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, points, geo):
+def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, boxes_blocked,
+              boxes_obstacle, geo):
     """(clearance, kind of what limits it, obstacle distance, obstacle x, obstacle y)."""
-    clearance, _, _, kind = query_point(qx, qy, state, nearest_blocked, points, geo, True)
-    d, px, py, _ = query_point(qx, qy, state, nearest_obstacle, points, geo, False)
+    clearance, _, _, kind = query_point(qx, qy, boxes_blocked, nearest_blocked, state, geo,
+                                        True)
+    d, px, py, _ = query_point(qx, qy, boxes_obstacle, nearest_obstacle, state, geo, False)
     if d <= clearance:  # the two refinements may settle on different cells
         clearance, kind = d, OBSTACLE
     return clearance, kind, d, px, py
 
 
 @njit(cache=True, nogil=True)
-def query_points(xy, state, nearest_blocked, nearest_obstacle, points, geo, unknown_blocks,
-                 out):
+def query_points(xy, state, nearest_blocked, nearest_obstacle, boxes_blocked, boxes_obstacle,
+                 geo, unknown_blocks, out):
     """Clearance (unknown_blocks) or obstacle distance of each (x, y) row (see query_one)."""
     for i in range(xy.shape[0]):
-        d = query_point(xy[i, 0], xy[i, 1], state, nearest_obstacle, points, geo, False)[0]
+        d = query_point(xy[i, 0], xy[i, 1], boxes_obstacle, nearest_obstacle, state, geo,
+                        False)[0]
         if unknown_blocks:
-            d = min(d, query_point(xy[i, 0], xy[i, 1], state, nearest_blocked, points, geo,
-                                   True)[0])
+            d = min(d, query_point(xy[i, 0], xy[i, 1], boxes_blocked, nearest_blocked, state,
+                                   geo, True)[0])
         out[i] = d
 
 
 @njit(cache=True, nogil=True)
-def polar_kernel(qx, qy, yaw, max_range, state, points, geo, ranges, kinds):
+def polar_kernel(qx, qy, yaw, max_range, state, boxes, geo, ranges, kinds):
     """Per angular bin, the range of the nearest non-free cell within max_range.
 
     Every blocked cell is spread over the bins its square subtends, so nothing thin is
@@ -200,8 +216,8 @@ def polar_kernel(qx, qy, yaw, max_range, state, points, geo, ranges, kinds):
         for x in range(x_lo, x_hi):
             if state[y, x] == FREE:
                 continue
-            px, py = _cell_point(y * nx + x, qx, qy, state, points, geo)
-            r = math.hypot(px - qx, py - qy)
+            b = boxes[y, x]
+            r = math.hypot(_clamp(qx, b[0], b[2]) - qx, _clamp(qy, b[1], b[3]) - qy)
             if r > max_range:
                 continue
             cx, cy = ox + (x + 0.5) * res - qx, oy + (y + 0.5) * res - qy
@@ -266,11 +282,14 @@ def polygon_margin(polygon, radius, state, points, geo):
 @dataclass(frozen=True, eq=False)
 class ObstacleSnapshot:
     """One consistent obstacle map (immutable): the segmentation, two distance fields (over
-    cells not known free, and over obstacle cells only) and the data time."""
+    cells not known free, and over obstacle cells only) with their `cell_boxes`, and the
+    data time."""
 
     segmentation: Segmentation
     nearest_blocked: np.ndarray
     nearest_obstacle: np.ndarray
+    boxes_blocked: np.ndarray
+    boxes_obstacle: np.ndarray
     stamp: float
     geometry: np.ndarray  # origin x, origin y, resolution, nx, ny
 
@@ -281,24 +300,27 @@ class ObstacleSnapshot:
         _, obstacle = distance_transform(seg.state == OBSTACLE)
         ny, nx = seg.shape
         geometry = np.array([seg.origin[0], seg.origin[1], seg.resolution, nx, ny], np.float64)
+        boxes_blocked = cell_boxes(seg.state, seg.points, geometry, True)
+        boxes_obstacle = cell_boxes(seg.state, seg.points, geometry, False)
         for array in (seg.state, seg.points, seg.floor_height, seg.is_floor, seg.band_logodds,
-                      seg.updated, blocked, obstacle, geometry):
+                      seg.updated, blocked, obstacle, boxes_blocked, boxes_obstacle, geometry):
             array.setflags(write=False)
-        return cls(seg, blocked, obstacle, float(stamp), geometry)
+        return cls(seg, blocked, obstacle, boxes_blocked, boxes_obstacle, float(stamp),
+                   geometry)
 
     def query(self, x: float, y: float) -> tuple[float, int, float, float, float]:
         """(clearance, what limits it, obstacle distance, obstacle x, obstacle y)."""
-        s = self.segmentation
-        return query_one(float(x), float(y), s.state, self.nearest_blocked,
-                         self.nearest_obstacle, s.points, self.geometry)
+        return query_one(float(x), float(y), self.segmentation.state, self.nearest_blocked,
+                         self.nearest_obstacle, self.boxes_blocked, self.boxes_obstacle,
+                         self.geometry)
 
     def distances(self, points: np.ndarray, unknown_blocks: bool) -> np.ndarray:
         """Clearance (unknown_blocks) or obstacle distance of each (x, y) row."""
         xy = np.ascontiguousarray(np.asarray(points, dtype=np.float64)[:, :2])
         out = np.empty(len(xy))
-        s = self.segmentation
-        query_points(xy, s.state, self.nearest_blocked, self.nearest_obstacle, s.points,
-                     self.geometry, unknown_blocks, out)
+        query_points(xy, self.segmentation.state, self.nearest_blocked, self.nearest_obstacle,
+                     self.boxes_blocked, self.boxes_obstacle, self.geometry, unknown_blocks,
+                     out)
         return out
 
 
@@ -412,7 +434,8 @@ class ObstacleMap:
         snap, age, status = self._usable()
         if snap is not None:
             s = snap.segmentation
-            polar_kernel(float(x), float(y), float(yaw), float(max_range), s.state, s.points,
+            polar_kernel(float(x), float(y), float(yaw), float(max_range), s.state,
+                         snap.boxes_blocked,
                          snap.geometry, ranges, kinds)
             status = Status.UNKNOWN if (kinds == UNKNOWN).any() else Status.OK
         return PolarScan(angles, ranges, kinds, age, status)
