@@ -30,11 +30,10 @@ import cv2
 import numpy as np
 
 from scanmap_driver.files import write_json
-from scanmap_driver.recording import scan_name
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel
 from scanmap_driver.sim.raster import TruthRaster
-from scanmap_driver.sim.truth import ScanTruth
+from scanmap_driver.sim.truth import ScanTruth, truth_path
 
 from . import evaluation
 from .costmap import occupancy_grid
@@ -55,21 +54,25 @@ Progress = Callable[[int, int, MapUpdate], None]
 
 def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *,
                   model: ScannerModel | None = None, workers: int = 2,
-                  config: MapperConfig = OFFLINE_CONFIG, progress: Progress | None = None
-                  ) -> dict:
-    """Map INPUT (a recording or a folder of scan_NNNN.npz) into `out`; returns the report."""
+                  config: MapperConfig = OFFLINE_CONFIG, progress: Progress | None = None,
+                  resume: str | os.PathLike[str] | None = None) -> dict:
+    """Map INPUT (a recording or a folder of scan_NNNN.npz) into `out`; returns the report.
+
+    resume: a map.npz to continue (its settings and scanner model are kept) instead of
+    starting a new map.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start, start_cpu = time.perf_counter(), time.process_time()
     scans = ScanSource.open(source, model, workers)
-    mapper = Mapper(scans.model, config, offline=True)
+    mapper = Mapper.load(resume, offline=True) if resume else \
+        Mapper(scans.model, config, offline=True)
     stages: dict[str, list[StageClock]] = defaultdict(list)
-    truth_scans = (scans.ground_truth / f"{scan_name(0)}.npz").is_file() \
-        if scans.ground_truth else False
+    truth_scans = bool(scans.ground_truth and any(scans.ground_truth.glob("scan_*.npz")))
     kept: list[Scan] = []
     notes = []
     outcome: Counter[str] = Counter()
-    for item in scans:
+    for done, item in enumerate(scans, start=1):
         update = mapper.add(item.scan)
         outcome.update({update.registration.status.value: 1, "fused": int(update.fused),
                         "degenerate": int(update.registration.degenerate)})
@@ -81,7 +84,7 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
         if truth_scans:
             kept.append(item.scan)
         if progress:
-            progress(len(mapper), scans.count, update)
+            progress(done, scans.count, update)
     mapping_wall = time.perf_counter() - start
     mapping_cpu = time.process_time() - start_cpu
 
@@ -96,9 +99,10 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
     recorded = scans.sweep_seconds()
     report = {
         "format": REPORT_FORMAT,
-        "input": {"path": str(scans.path), "kind": scans.kind, "scans": scans.count},
+        "input": {"path": str(scans.path), "kind": scans.kind, "scans": scans.count,
+                  "resumed": None if resume is None else str(resume)},
         "mapping": {"wall_seconds": mapping_wall,
-                    "seconds_per_scan": mapping_wall / max(len(mapper), 1),
+                    "seconds_per_scan": mapping_wall / max(scans.count, 1),
                     "process_cpu_seconds": mapping_cpu,
                     "recorded_seconds": recorded,
                     "speedup": recorded / mapping_wall if recorded else None,
@@ -171,10 +175,11 @@ def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
     if folder is None:
         return {"available": False, "reason": f"no ground_truth/ in {scans.path}"}
     errors: dict = {"available": True}
-    if kept:
+    kept = [scan for scan in kept if truth_path(scans.path, scan.index).is_file()]
+    if kept:  # the scans of this run (not those of a resumed map)
         ranges, headings, matched, total = [], [], 0, 0
         for scan in kept:
-            truth = ScanTruth.load(folder / f"{scan_name(scan.index)}.npz")
+            truth = ScanTruth.load(truth_path(scans.path, scan.index))
             error, count = evaluation.range_errors(scan, truth, scans.model)
             ranges.append(error)
             matched, total = matched + error.size, total + count

@@ -28,6 +28,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "scanner for scan files)")
     parser.add_argument("--workers", type=int, default=2,
                         help="threads assembling scans from video (default 2)")
+    parser.add_argument("--resume", type=Path, default=None, metavar="MAP",
+                        help="continue this map.npz (a previous run's) with INPUT's scans")
     parser.set_defaults(func=_map)
 
 
@@ -40,7 +42,7 @@ def _map(args: argparse.Namespace) -> int:
         bar.update(done, f"scan {update.index}: {update.registration.status.value}")
 
     report = map_to_folder(args.input, args.out, model=model, workers=args.workers,
-                           progress=progress)
+                           progress=progress, resume=args.resume)
     print(report_text(report))
     print(f"wrote {args.out}")
     return 0

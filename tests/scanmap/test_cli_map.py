@@ -26,7 +26,8 @@ def test_a_recording_becomes_a_map_with_its_errors(office_recording, tmp_path, c
     assert "1/1 scans" in printed.err  # the progress bar
 
     report = json.loads((out / "report.json").read_text())
-    assert report["input"] == {"path": str(office_recording), "kind": "recording", "scans": 1}
+    assert report["input"] == {"path": str(office_recording), "kind": "recording", "scans": 1,
+                               "resumed": None}
     record = Recording.open(office_recording).scans[0]
     assert report["mapping"]["recorded_seconds"] == pytest.approx(
         record.frame_times[-1] - record.frame_times[0] + 1 / 25, rel=0.01)
@@ -77,3 +78,23 @@ def test_a_folder_of_processed_scans_is_mapped_and_its_trajectory_scored(tmp_pat
 def test_input_that_is_not_a_recording_is_a_clear_error(tmp_path, capsys):
     assert main(["map", str(tmp_path / "nothing"), "--out", str(tmp_path / "out")]) == 1
     assert "nothing: neither a recording" in capsys.readouterr().err
+
+
+def test_a_map_is_resumed_with_new_scans(tmp_path):
+    scans = simulate_ideal(builtin_scene("office"), tmp_path / "scans", reference_scanner(),
+                           seed=5, scans=5)
+    first, later = tmp_path / "first", tmp_path / "later"
+    first.mkdir()
+    later.mkdir()
+    for index in range(5):
+        name = f"scan_{index:04d}.npz"
+        (scans / name).rename((first if index < 3 else later) / name)
+    (scans / "ground_truth").rename(later / "ground_truth")
+    assert main(["map", str(first), "--out", str(tmp_path / "map1")]) == 0
+    assert main(["map", str(later), "--out", str(tmp_path / "map2"), "--resume",
+                 str(tmp_path / "map1" / "map.npz")]) == 0
+    report = json.loads((tmp_path / "map2" / "report.json").read_text())
+    assert report["registration"] == {"degenerate": 0, "fused": 2, "ok": 2}
+    assert report["errors"]["trajectory_m"]["count"] == 5
+    assert report["errors"]["trajectory_m"]["ate_rmse"] < 0.02
+    assert len(read_tum(tmp_path / "map2" / "trajectory.tum")) == 5
