@@ -117,6 +117,8 @@ class RoomAssembler:
         return self.headings[-1]
 
     def finish(self, index: int = 0, odom_start=None, odom_end=None) -> tuple[Scan, int]:
+        if len(self.headings) < 2:  # a scan cancelled at its start
+            return Scan.empty(index, self.times[0] if self.times else 0.0), len(self.times)
         headings = np.unwrap(self.headings)
         parts = []
         for k in range(1, len(headings)):
