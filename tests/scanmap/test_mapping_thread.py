@@ -19,7 +19,7 @@ from scanmap_driver.sim.motor_model import MotorParameters
 from scanmap_driver.transforms import se2_to_pose
 
 from ..scanmap_driver.polling import wait_until
-from ..scanmap_driver.sim_rig import image_angle, rig
+from ..scanmap_driver.sim_rig import WallAssembler, rig
 
 FAST = MotorParameters(full_speed=2.0 * np.pi * 1.6)  # about 0.9 s per revolution
 
@@ -100,21 +100,12 @@ def test_stop_ends_a_waiting_thread_and_submit_says_why_it_cannot(scans):
     assert own.join(timeout=10)
 
 
-class RoomAssembler:
+class RoomAssembler(WallAssembler):
     """Frames of the sim rig become points of a square room (4 m wide, walls to 1 m, floor
     from 0.8 m), swept over the headings since the previous frame: a live scanner's
     scans of a room, fast enough to run the real loop."""
 
     HALF_SIDE = 2.0
-
-    def __init__(self) -> None:
-        self.times: list[float] = []
-        self.headings: list[float] = []
-
-    def add_frame(self, image: np.ndarray, timestamp: float) -> float:
-        self.times.append(timestamp)
-        self.headings.append(image_angle(image))
-        return self.headings[-1]
 
     def finish(self, index: int = 0, odom_start=None, odom_end=None) -> tuple[Scan, int]:
         if len(self.headings) < 2:  # a scan cancelled at its start
