@@ -40,15 +40,8 @@ CONDITIONS = {  # name -> synthetic stripe (sigma 1.5 px); MJPG is what the webc
 
 
 def median_cpu_time(func: Callable[[], object], repeats: int) -> float:
-    """Median CPU time (s) of this thread per call: what one core spends, whatever else
-    shares the machine (the wall-clock median is the row's median_s)."""
-    func()
-    times = []
-    for _ in range(repeats):
-        start = time.thread_time()
-        func()
-        times.append(time.thread_time() - start)
-    return float(np.median(times))
+    """Median CPU time (s) of this thread per call (the wall-clock median is median_s)."""
+    return median_time(func, repeats, clock=time.thread_time)
 
 
 def stripe_errors(settings: LaserSettings, frames: dict) -> dict[str, tuple[float, float]]:
