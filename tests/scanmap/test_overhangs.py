@@ -1,0 +1,104 @@
+"""Overhanging boards in the segmentation, on hand-built cells: what a table top seen only
+at its rim hides, and what is no overhang (a box's top, the pieces of a wall face)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scanmap import grid_kernels as gk
+from scanmap.floor import FREE, RobotShape, segment
+from scanmap.grid import CellLayers
+
+N = 24  # cells per side, 5 cm
+Z_MIN, DZ = -0.35, 0.025
+ROBOT = RobotShape(step_height=0.05, height=1.0)
+
+
+def heights(lo: float, hi: float) -> np.uint64:
+    """The observed-height bits covering [lo, hi] (m)."""
+    return gk.height_mask(lo, hi, Z_MIN, DZ)
+
+
+def floor_cells() -> CellLayers:
+    """N x N cells of floor (a thin level at z = 0), each with every height seen free."""
+    levels = np.zeros((N, N, 3, gk.N_FLOAT_FIELDS), np.float32)
+    levels[:, :, 0, gk.HI] = 0.002
+    levels[:, :, 0, gk.LOGODDS] = 3.5
+    return CellLayers(origin=(0.0, 0.0), resolution=0.05, z_min=Z_MIN, mask_dz=DZ,
+                      levels=levels, counts=np.ones((N, N, 3, 2), np.uint32),
+                      nlev=np.ones((N, N), np.uint8),
+                      seen=np.full((N, N), heights(-0.01, 1.0), np.uint64),
+                      updated=np.zeros((N, N)))
+
+
+def add_level(layers: CellLayers, where, lo: float, hi: float) -> None:
+    """An occupied level [lo, hi] above the floor in the cells `where` (an index of N x N)."""
+    cells = layers.levels[where]
+    cells[..., 1, gk.LO], cells[..., 1, gk.HI], cells[..., 1, gk.LOGODDS] = lo, hi, 3.5
+    layers.levels[where] = cells
+    layers.nlev[where] = 2
+
+
+def test_a_table_top_seen_at_its_rim_covers_the_cells_that_saw_only_under_it():
+    """The rim (0.72-0.76 m) of a 12 x 12 cell table is hit, with rays seen under and over
+    it; the cells inside saw the band only up to 0.6 m (more than half of it, so the
+    coverage rule alone would call them free): none of them may be free floor."""
+    layers = floor_cells()
+    rim = np.zeros((N, N), bool)
+    rim[6:18, 6:18] = True
+    inside = np.zeros((N, N), bool)
+    inside[7:17, 7:17] = True
+    rim &= ~inside
+    add_level(layers, rim, 0.72, 0.76)
+    layers.seen[rim] = heights(-0.01, 0.7) | heights(0.78, 1.0)
+    layers.seen[inside] = heights(-0.01, 0.6)
+    seg = segment(layers, ROBOT)
+    assert not (seg.state[inside] == FREE).any()
+    assert not seg.is_floor[inside].any()
+    outside = np.ones((N, N), bool)
+    outside[5:19, 5:19] = False
+    assert (seg.state[outside] == FREE).all() and seg.is_floor[outside].all()
+
+
+def test_the_top_of_a_box_is_no_overhang_and_the_floor_behind_it_stays_free():
+    """A 0.4 m box hit only on its top (rays from above, nothing seen under the top in its
+    cells) shades the floor behind it up to 0.45 m. The cells behind saw more than half
+    of the band and no overhang can reach over them: free floor, except those next to
+    the box, whose unseen heights may hold the box."""
+    layers = floor_cells()
+    box = (slice(10, 14), slice(6, 10))
+    layers.levels[box + (0,)] = 0.0
+    layers.levels[box + (0, gk.LO)] = 0.39
+    layers.levels[box + (0, gk.HI)] = 0.40
+    layers.levels[box + (0, gk.LOGODDS)] = 3.5
+    layers.seen[box] = heights(0.39, 1.0)
+    behind = (slice(8, 16), slice(10, N))
+    layers.seen[behind] = heights(-0.01, 0.04) | heights(0.45, 1.0)
+    seg = segment(layers, ROBOT)
+    assert not (seg.state[10:14, 10] == FREE).any()
+    assert (seg.state[8:16, 11:] == FREE).all() and seg.is_floor[8:16, 11:].all()
+
+
+@pytest.mark.parametrize("case", ["in front of the wall", "rising along the face"])
+def test_pieces_of_a_wall_face_are_no_overhang(case):
+    """Thin pieces of a wall face, with free space seen under them (rays that ended lower
+    on the face): in front of the full-height wall they hold, or rising cell by cell as one
+    sloping laser line leaves them. Cells in front that missed their heights stay free."""
+    layers = floor_cells()
+    face = 12
+    rows = np.arange(2, N - 2)
+    if case == "in front of the wall":
+        add_level(layers, (rows, face + 1), 0.05, 1.0)
+        pieces = [(0.40, 0.42)] * len(rows)
+    else:
+        pieces = [(0.1 + 0.075 * k, 0.12 + 0.075 * k) for k in range(len(rows))]
+    for row, (lo, hi) in zip(rows, pieces, strict=True):
+        add_level(layers, (row, face), lo, hi)
+        layers.seen[row, face] = heights(-0.01, 1.0) & ~heights(lo, hi)
+    front = (slice(2, N - 2), slice(0, face))
+    layers.seen[front] = heights(-0.01, 0.25) | heights(0.55, 1.0) if case == \
+        "in front of the wall" else heights(-0.01, 0.04) | heights(0.35, 1.0)
+    seg = segment(layers, ROBOT)
+    away = (slice(2, N - 2), slice(0, face - 1))  # not next to the pieces
+    assert (seg.state[away] == FREE).all() and seg.is_floor[away].all()
