@@ -25,11 +25,12 @@ from benchmarks.timing import median_time
 from scanmap_driver import reference_scanner
 from scanmap_driver.assembly import ScanAssembler
 from scanmap_driver.camera import RenderedCamera
+from scanmap_driver.heading_decoder import encoder_headings
 from scanmap_driver.motor import MotorController
 from scanmap_driver.processing import recording_scans
 from scanmap_driver.recording import Recording
 from scanmap_driver.scan import Scan
-from scanmap_driver.scanner import Scanner, ScanSettings, encoder_headings
+from scanmap_driver.scanner import Scanner, ScanSettings
 from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.firmware import SimulatedFirmware, scene_renderer
 from scanmap_driver.sim.motor_model import MotorParameters

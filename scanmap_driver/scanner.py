@@ -6,13 +6,16 @@ headings cover 360 deg plus a small overlap, stop taking frames, and turn the he
 where it started. With `continuous=True` the head keeps turning one way instead.
 
 The loop depends on small injected parts, so any camera, decoder and laser pipeline plugs
-in: a `Camera`, `decode_heading(frame) -> heading (rad) or None`, and a factory of
-`Assembler`s, which take a scan's frames one by one (returning each frame's heading) and
-build the `Scan` at the end: `assembly.ScanAssembler`, the offline path's own, so a live
-scan and its recording processed later (`scanmap process`) give the same points.
-Without an assembler the loop only takes frames and headings (`scanmap record`). A
-grabber thread reads the camera all the time into a bounded buffer, so a slow consumer
-never blocks the camera.
+in: a `Camera`, `decode_heading(frame) -> heading (rad) or None` (the encoder disk's:
+`heading_decoder.encoder_headings`), and a factory of `Assembler`s, which take a scan's
+frames one by one (returning each frame's heading) and build the `Scan` at the end:
+`assembly.ScanAssembler`, the offline path's own, so a live scan and its recording
+processed later (`scanmap process`) give the same points. Without an assembler the loop
+only takes frames and headings (`scanmap record`). A grabber thread
+(`frame_grabber.FrameGrabber`) reads the camera all the time into a bounded buffer, so a
+slow consumer never blocks the camera. Scans back to back in a background thread:
+`continuous_scanning.ContinuousScanning`; a scan into a raw recording:
+`live_recording.write_scan`.
 
 Faults are handled, not hidden: a stall (headings stop advancing while the motor is
 driven), a camera that stops delivering, a motor controller that vanishes, a scan over
@@ -23,31 +26,26 @@ says what happened.
 
 from __future__ import annotations
 
-import collections
 import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
+from typing import Any, Protocol
 
 import numpy as np
 
 from .camera import Camera, Frame
 from .errors import DeviceError, ScanError
+from .frame_grabber import FrameGrabber
+from .heading_decoder import HeadingDecoder
+from .heading_tracker import HeadingTracker
 from .motor import MotorController
 from .scan import Scan
-from .scanner_model import ScannerModel
-from .transforms import pose_to_se2, wrap_angle
-
-if TYPE_CHECKING:
-    from .recording import RecordingWriter
 
 log = logging.getLogger(__name__)
 
-T = TypeVar("T")
-HeadingDecoder = Callable[[Frame], "float | None"]
 Odometry = Callable[[float], np.ndarray]
 
 
@@ -160,160 +158,6 @@ class Progress:
     frames: int
     dropped_frames: int
     elapsed: float
-
-
-# -- hand-over between threads -------------------------------------------------------------
-
-class DropOldestQueue(Generic[T]):
-    """A bounded hand-over from a producer thread that never waits: when it is full, the
-    oldest item is dropped (counted in `dropped`). The producer's error is handed to the
-    consumer once the items before it are taken."""
-
-    def __init__(self, capacity: int) -> None:
-        if capacity < 1:
-            raise ValueError(f"capacity: expected >= 1, got {capacity}")
-        self.capacity = capacity
-        self.dropped = 0
-        self.added = 0
-        self._items: collections.deque[T] = collections.deque()
-        self._ready = threading.Condition()
-        self._error: BaseException | None = None
-
-    def put(self, item: T) -> None:
-        """Add an item, dropping the oldest when full."""
-        with self._ready:
-            if len(self._items) >= self.capacity:
-                self._items.popleft()
-                self.dropped += 1
-            self._items.append(item)
-            self.added += 1
-            self._ready.notify_all()
-
-    def fail(self, error: BaseException) -> None:
-        """The producer ended with `error`."""
-        with self._ready:
-            self._error = error
-            self._ready.notify_all()
-
-    def get(self, timeout: float) -> T | None:
-        """The oldest item; None after `timeout` s; raises the producer's error when drained."""
-        with self._ready:
-            if not self._ready.wait_for(lambda: self._items or self._error, timeout):
-                return None
-            if self._items:
-                return self._items.popleft()
-            raise self._error  # type: ignore[misc]
-
-    def clear(self) -> None:
-        """Drop every queued item (not counted)."""
-        with self._ready:
-            self._items.clear()
-
-
-class FrameGrabber:
-    """Reads a camera in its own thread into a `DropOldestQueue`, so the camera is never
-    blocked by the consumer; frames dropped for lack of room are counted in `overflow`.
-    A camera error reaches the consumer through `get` as a DeviceError.
-    """
-
-    def __init__(self, camera: Camera, capacity: int = 100) -> None:
-        self.camera = camera
-        self._frames: DropOldestQueue[Frame] = DropOldestQueue(capacity)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="frame-grabber", daemon=True)
-        self._thread.start()
-
-    @property
-    def overflow(self) -> int:
-        """Frames dropped because the consumer fell behind."""
-        return self._frames.dropped
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            try:
-                self._frames.put(self.camera.read())
-            except BaseException as exc:  # handed to the consumer
-                self._frames.fail(exc)
-                return
-
-    def get(self, timeout: float) -> Frame | None:
-        """The oldest buffered frame; None after `timeout` s; DeviceError if the camera failed."""
-        try:
-            return self._frames.get(timeout)
-        except Exception as exc:
-            raise DeviceError(f"camera failed: {exc}") from exc
-
-    def discard(self) -> None:
-        """Drop the buffered frames (taken before the current scan began)."""
-        self._frames.clear()
-
-    def stop(self) -> None:
-        """Stop reading (the thread ends after the camera's current read)."""
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-
-
-# -- heading tracking ----------------------------------------------------------------------
-
-class HeadingTracker:
-    """Unwraps decoded headings into progress (rad) along the sweep direction.
-
-    Each new heading is unwrapped around the heading predicted from the recent angular
-    speed, so a few undecoded frames in a row do not lose a turn. A heading far from the
-    prediction is an outlier and skipped, unless three in a row agree (a real jump).
-    """
-
-    OUTLIER = math.radians(60.0)
-
-    def __init__(self, sign: float) -> None:
-        self.sign = sign
-        self.start: float | None = None
-        self.unwrapped = 0.0
-        self.speed = 0.0
-        self.time = 0.0
-        self.outliers = 0
-        self._rejected = 0
-        self._history: collections.deque[tuple[float, float]] = collections.deque()
-
-    @property
-    def progress(self) -> float:
-        """Heading turned since the first decoded frame, in the sweep direction (rad)."""
-        return 0.0 if self.start is None else self.sign * (self.unwrapped - self.start)
-
-    def update(self, t: float, heading: float) -> bool:
-        """Take the heading of a frame at time t; False if it was rejected as an outlier."""
-        if self.start is None:
-            self.start = self.unwrapped = heading
-            self.time = t
-            self._history.append((t, 0.0))
-            return True
-        dt = max(t - self.time, 0.0)
-        predicted = self.speed * dt
-        delta = float(wrap_angle(heading - self.unwrapped - predicted)) + predicted
-        if abs(delta - predicted) > self.OUTLIER and self._rejected < 2:
-            self._rejected += 1
-            self.outliers += 1
-            return False
-        self._rejected = 0
-        self.unwrapped += delta
-        if dt > 0.0:
-            self.speed = 0.5 * self.speed + 0.5 * delta / dt
-        self.time = t
-        self._history.append((t, self.progress))
-        return True
-
-    def advance_within(self, window: float, now: float) -> float | None:
-        """Progress over the last `window` s (None until the history spans it)."""
-        while len(self._history) > 1 and self._history[1][0] <= now - window:
-            self._history.popleft()
-        t0, p0 = self._history[0] if self._history else (now, 0.0)
-        if now - t0 < window:
-            return None
-        return self.progress - p0
-
-    def heading_now(self) -> float:
-        """The last unwrapped heading (rad)."""
-        return self.unwrapped
 
 
 # -- the scanner ---------------------------------------------------------------------------
@@ -609,120 +453,3 @@ class Scanner:
             dropped_frames=self.camera.dropped_frames - sweep.dropped_at_start
             + grabber.overflow - sweep.overflow_at_start,
             elapsed=time.monotonic() - sweep.started))
-
-
-# -- continuous scanning -------------------------------------------------------------------
-
-class ContinuousScanning:
-    """Scans back to back in a background thread, handed over through a bounded queue.
-
-    When the consumer falls behind, the oldest queued scan is dropped (counted in
-    `dropped_scans`): the scanner and the camera never wait for the consumer. A fault ends
-    the thread with the motor braked; `get` raises it once the queued scans are taken.
-    """
-
-    def __init__(self, scanner: Scanner, capacity: int = 2) -> None:
-        self.scanner = scanner
-        self._scans: DropOldestQueue[ScanResult] = DropOldestQueue(capacity)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="continuous-scanning",
-                                        daemon=True)
-
-    @property
-    def dropped_scans(self) -> int:
-        """Scans dropped because the consumer fell behind."""
-        return self._scans.dropped
-
-    @property
-    def scans_taken(self) -> int:
-        """Scans completed so far."""
-        return self._scans.added
-
-    def __enter__(self) -> ContinuousScanning:
-        self.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def start(self) -> None:
-        """Start scanning."""
-        self._thread.start()
-
-    def _run(self) -> None:
-        try:
-            while not self._stop.is_set():
-                self._scans.put(self.scanner.scan(keep_running=True, cancel=self._stop))
-        except BaseException as exc:  # handed to the consumer
-            if not (isinstance(exc, ScanFailed) and exc.reason == "cancelled"):
-                self._scans.fail(exc)
-        finally:
-            self.scanner.motor.stop_safely()
-
-    def get(self, timeout: float) -> ScanResult | None:
-        """The oldest queued scan; None after `timeout` s; the thread's fault once drained."""
-        return self._scans.get(timeout)
-
-    def __iter__(self) -> Iterator[ScanResult]:
-        """Scans until a fault (raised) or stop()."""
-        while not self._stop.is_set():
-            result = self.get(timeout=0.5)
-            if result is not None:
-                yield result
-
-    def stop(self) -> None:
-        """Cancel the current scan (the motor is braked at once) and end the thread."""
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout=self.scanner.settings.frame_timeout + 5.0)
-        self.scanner.motor.stop_safely()
-
-
-# -- the real pipeline and recordings ---------------------------------------------
-
-def encoder_headings(model: ScannerModel) -> HeadingDecoder:
-    """The heading decoder of the encoder disk (`encoder.decode_heading`), each frame
-    decoded near the previous heading."""
-    from .encoder import decode_heading
-
-    previous: float | None = None
-
-    def decode(frame: Frame) -> float | None:
-        nonlocal previous
-        result = decode_heading(frame.image, model, previous=previous)
-        if not result.ok:
-            return None
-        previous = float(result.heading)
-        return previous
-
-    return decode
-
-
-class _Incomplete(Exception):
-    """Ends a ScanWriter block so that the scan is marked incomplete."""
-
-
-def write_scan(writer: RecordingWriter, result: ScanResult, origin: float,
-               exposure: float | None = None) -> None:
-    """Add a scan to a raw recording: its frames (the camera's JPEGs byte for byte when it
-    delivered them), motor log and odometry. Times become seconds since `origin`
-    (monotonic); a partial scan (result.fault) is marked incomplete."""
-    runs = [e["t"] for e in result.motor_log if e["command"] == "run"]
-    stamp = runs[0] if runs else (result.frame_times[0] if result.frame_times.size else origin)
-    try:
-        with writer.scan(stamp - origin, exposure) as out:
-            for frame in result.frames:
-                if frame.raw_jpeg is not None:
-                    out.add_jpeg(frame.raw_jpeg, frame.timestamp - origin)
-                else:
-                    out.add_image(frame.image, frame.timestamp - origin)
-            for entry in result.motor_log:
-                extra = {k: v for k, v in entry.items() if k not in ("t", "command")}
-                out.log_motor(entry["t"] - origin, entry["command"], **extra)
-            if result.scan.has_odometry:
-                out.set_odometry(pose_to_se2(result.scan.odom_start),
-                                 pose_to_se2(result.scan.odom_end))
-            if result.fault is not None:
-                raise _Incomplete
-    except _Incomplete:
-        pass

@@ -147,15 +147,12 @@ def open_devices(args: argparse.Namespace, model: ScannerModel
 def run_device(args: argparse.Namespace, process: bool, on_scan) -> int:
     """Open camera and controller, take the scans, record them if asked; shared by
     `scan` and `record`. Returns the exit code."""
+    from scanmap_driver.continuous_scanning import ContinuousScanning
+    from scanmap_driver.heading_decoder import encoder_headings
+    from scanmap_driver.live_recording import write_scan
     from scanmap_driver.motor import MotorController
     from scanmap_driver.recording import RecordingWriter
-    from scanmap_driver.scanner import (
-        ContinuousScanning,
-        Scanner,
-        ScanSettings,
-        encoder_headings,
-        write_scan,
-    )
+    from scanmap_driver.scanner import Scanner, ScanSettings
 
     model = load_model(args.scanner)
     slow = SLOW_MOTION if args.simulate else 1.0

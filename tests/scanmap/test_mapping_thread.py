@@ -12,8 +12,9 @@ from scanmap.grid import GridConfig
 from scanmap.mapper_config import MapperConfig
 from scanmap.obstacles import Status
 from scanmap_driver import reference_scanner
+from scanmap_driver.continuous_scanning import ContinuousScanning
 from scanmap_driver.scan import Scan
-from scanmap_driver.scanner import ContinuousScanning, ScanSettings
+from scanmap_driver.scanner import ScanSettings
 from scanmap_driver.sim import builtin_scene, ideal_scans
 from scanmap_driver.sim.motor_model import MotorParameters
 from scanmap_driver.transforms import se2_to_pose

@@ -18,17 +18,13 @@ import pytest
 
 from scanmap_driver import reference_scanner
 from scanmap_driver.camera import RenderedCamera
+from scanmap_driver.continuous_scanning import ContinuousScanning
 from scanmap_driver.errors import DeviceError
+from scanmap_driver.heading_tracker import HeadingTracker
+from scanmap_driver.live_recording import write_scan
 from scanmap_driver.recording import Recording, RecordingWriter, read_avi_frames
 from scanmap_driver.scan import Scan
-from scanmap_driver.scanner import (
-    ContinuousScanning,
-    HeadingTracker,
-    ScanFailed,
-    ScanResult,
-    ScanSettings,
-    write_scan,
-)
+from scanmap_driver.scanner import ScanFailed, ScanResult, ScanSettings
 from scanmap_driver.sim.motor_model import MotorParameters
 
 from .polling import wait_until
