@@ -28,8 +28,8 @@ mean red and the median of the lines' red maxima (the laser's level).
 
 Lines across the stripe are image columns for the scanner (camera on its side: one line
 per column u, the peak is the row v) or rows (`axis="rows"`, e.g. a turntable scanner);
-the kernels stream along the positions and vectorise across the lines, and rows are
-transposed once, in the evidence pass.
+the kernels (`laser_kernels`) stream along the positions and vectorise across the lines,
+and rows are transposed once, in the evidence pass.
 
 Default estimator, by measurement (benchmarks/bench_laser.py; sigma 1.5 px stripes): the
 half-height centroid ("com") matches Blais-Rioux under MJPG (0.18 px RMS; bright room
@@ -46,25 +46,22 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from . import laser_kernels as lk
 from .errors import ScanError
-
-NONE_FOUND, SATURATED, MULTIPLE, AT_EDGE, SKIPPED, FIT_FAILED, ISOLATED, NOT_RED = (
-    1, 2, 4, 8, 16, 32, 64, 128)
 
 
 class Flag(enum.IntFlag):
     """Per-line quality bits of a `StripeResult` (0 = a clean peak)."""
 
-    NONE_FOUND = NONE_FOUND  # no candidate above the threshold on this line
-    SATURATED = SATURATED  # the red channel is clipped at the peak
-    MULTIPLE = MULTIPLE  # more than one candidate above the noise; the best was kept
-    AT_EDGE = AT_EDGE  # the fit window was cut by the end of the line
-    SKIPPED = SKIPPED  # the line lies outside `line_range`
-    FIT_FAILED = FIT_FAILED  # the estimator failed; the integer peak was kept
-    ISOLATED = ISOLATED  # a peak without enough neighbours along the stripe: dropped
-    NOT_RED = NOT_RED  # a clipped white peak without red flanks (lamp, window): dropped
+    NONE_FOUND = lk.NONE_FOUND  # no candidate above the threshold on this line
+    SATURATED = lk.SATURATED  # the red channel is clipped at the peak
+    MULTIPLE = lk.MULTIPLE  # more than one candidate above the noise; the best was kept
+    AT_EDGE = lk.AT_EDGE  # the fit window was cut by the end of the line
+    SKIPPED = lk.SKIPPED  # the line lies outside `line_range`
+    FIT_FAILED = lk.FIT_FAILED  # the estimator failed; the integer peak was kept
+    ISOLATED = lk.ISOLATED  # a peak without enough neighbours along the stripe: dropped
+    NOT_RED = lk.NOT_RED  # a clipped white peak without red flanks (lamp, window): dropped
 
 
 ESTIMATORS = ("max", "gauss3", "blais_rioux", "lsq", "com")
@@ -177,602 +174,13 @@ class StripeResult:
         return np.isfinite(self.peak)
 
 
-# ---------------------------------------------------------------------------------
-# Pass 1: evidence plane (int16), laid out (positions + 2 pad, lines), zero padded.
-# Only subtractions and comparisons of the raw uint8 values, which LLVM can vectorise
-# (numba widens integer arithmetic to int64; a clamp would defeat the narrowing).
-
-
-WHITE_CAP = 127  # a clipped-red pixel's green and blue count at most this much against it
-
-
-@njit(cache=True, nogil=True)
-def _evidence_rows(flat: np.ndarray, n: int, dark: bool, t: np.uint8, sat: np.uint8,
-                   out: np.ndarray) -> None:
-    cap = np.uint8(WHITE_CAP)
-    if dark:
-        for i in range(n):
-            b, g, r = flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]
-            hit = ((r > t) & (g < t) & (b < t)) | (r >= sat)
-            out[i] = np.int16(r) if hit else np.int16(0)
-    else:
-        for i in range(n):
-            b, g, r = flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]
-            m = g if g > b else b
-            m = cap if (r >= sat) & (m > cap) else m
-            out[i] = np.int16(r) - np.int16(m)
-
-
-@njit(cache=True, nogil=True)
-def evidence_kernel(flat: np.ndarray, height: int, width: int, by_rows: bool, dark: bool,
-                    t: np.uint8, sat: np.uint8, pad: int, out: np.ndarray) -> None:
-    """Fill `out` (positions + 2 pad, lines) with the per-pixel laser evidence.
-
-    flat: the BGR image raveled. by_rows: lines are image rows (else columns).
-    bright: r - max(g, b) (signed); dark: r where eq. 1 holds, else 0. A pixel whose red
-    is clipped (>= sat) is a possible white laser core: in the bright method its green
-    and blue count at most WHITE_CAP, in the dark method it passes. Such a core is only
-    accepted with red flanks (see `fit_kernel`).
-    """
-    if not by_rows:
-        n = height * width
-        _evidence_rows(flat, n, dark, t, sat, out.reshape(-1)[pad * width:pad * width + n])
-        return
-    row = np.empty(width, np.int16)
-    for v in range(height):
-        _evidence_rows(flat[3 * v * width:3 * (v + 1) * width], width, dark, t, sat, row)
-        for u in range(width):
-            out[pad + u, v] = row[u]
-
-
-@njit(cache=True, nogil=True)
-def evidence_noise(e: np.ndarray, pad: int, n_pos: int, step: int) -> float:
-    """Mean |difference| between neighbouring evidence samples along the lines.
-
-    Sampled every `step` positions; the laser covers a few pixels per line, so this
-    measures the scene's texture and noise, which the ridge threshold must clear.
-    """
-    n_lines = e.shape[1]
-    total = 0
-    count = 0
-    for p in range(0, n_pos - 1, step):
-        a = e[pad + p]
-        b = e[pad + p + 1]
-        acc = 0
-        for u in range(n_lines):
-            d = np.int32(a[u]) - np.int32(b[u])
-            acc += d if d >= 0 else -d
-        total += acc
-        count += n_lines
-    return total / max(count, 1)
-
-
-@njit(cache=True, nogil=True)
-def red_statistics(flat: np.ndarray, height: int, width: int,
-                   by_rows: bool) -> tuple[float, float]:
-    """(mean, median over lines of the line's maximum) of the red channel."""
-    n_lines = height if by_rows else width
-    line_max = np.zeros(n_lines, np.uint8)
-    total = 0
-    for v in range(height):
-        row = flat[3 * v * width:3 * (v + 1) * width]
-        acc = 0
-        top = np.uint8(0)
-        for u in range(width):
-            r = row[3 * u + 2]
-            acc += np.int32(r)
-            if by_rows:
-                top = r if r > top else top
-            else:
-                line_max[u] = r if r > line_max[u] else line_max[u]
-        if by_rows:
-            line_max[v] = top
-        total += acc
-    return total / (height * width), float(np.median(line_max))
-
-
 def automatic_colour_threshold(flat: np.ndarray, height: int, width: int,
                                by_rows: bool) -> float:
     """Eq. 1's `t`: midway between the scene's mean red and the laser's level (the median
     of the lines' red maxima). Red objects brighter than the laser pass it too; the ridge
     test rejects them unless they are as narrow as the stripe."""
-    mean, laser_level = red_statistics(flat, height, width, by_rows)
+    mean, laser_level = lk.red_statistics(flat, height, width, by_rows)
     return float(np.clip(0.5 * (mean + laser_level), 40.0, 250.0))
-
-
-# ---------------------------------------------------------------------------------
-# Pass 2: ridge response, streamed along the positions, vectorised across the lines.
-# Each loop writes few arrays: LLVM gives up vectorising when the aliasing checks
-# between many written arrays exceed its limit.
-
-
-@njit(cache=True, nogil=True)
-def _slide(acc: np.ndarray, add: np.ndarray, drop: np.ndarray) -> None:
-    for u in range(acc.shape[0]):
-        acc[u] += add[u] - drop[u]
-
-
-@njit(cache=True, nogil=True)
-def _triangle(tri: np.ndarray, slot: np.ndarray, box: np.ndarray) -> None:
-    for u in range(tri.shape[0]):
-        tri[u] += box[u] - slot[u]
-        slot[u] = box[u]
-
-
-@njit(cache=True, nogil=True)
-def _response(s: np.ndarray, tri: np.ndarray, left: np.ndarray, right: np.ndarray,
-              ws: np.int16, wc: np.int16) -> None:
-    for u in range(s.shape[0]):
-        sides = max(left[u], right[u])
-        s[u] = tri[u] * ws - sides * wc
-
-
-@njit(cache=True, nogil=True)
-def _track(s: np.ndarray, best: np.ndarray, best_pos: np.ndarray, runs: np.ndarray,
-           p: int, levels: np.ndarray) -> None:
-    """Keep the best response and its position; count hysteresis runs (runs = 2 count + state).
-
-    levels holds (start, end) of a run, 1, 0 and 0, in the arrays' integer type: every
-    operation stays in that type, which keeps both loops vectorised.
-    """
-    hi, lo, one, zero = levels[0], levels[1], levels[2], levels[3]
-    pos = levels[4] * zero + p
-    for u in range(s.shape[0]):
-        v = s[u]
-        b = best[u]
-        best_pos[u] = pos if v > b else best_pos[u]
-        best[u] = v if v > b else b
-    for u in range(s.shape[0]):
-        v = s[u]
-        r = runs[u]
-        state = r & one
-        above = one if v >= hi else zero
-        keep = one if v >= lo else zero
-        runs[u] = r - state + (above & (one - state)) * (one + one) + ((state | above) & keep)
-
-
-@njit(cache=True, nogil=True)
-def ridge_kernel(e: np.ndarray, n_pos: int, pad: int, m: int, offset: int, side: int,
-                 thr_hi: int, thr_lo: int, best: np.ndarray, best_pos: np.ndarray,
-                 count: np.ndarray) -> None:
-    """Best ridge response per line, its position, and the number of runs above threshold.
-
-    The response at x is T(x) * side - max(L(x), R(x)) * m^2, i.e. (m^2 * side) times the
-    triangle-weighted mean (weights m - |k|, |k| < m) minus the larger side mean, where
-    L sums e[x-offset-side+1 .. x-offset] and R sums e[x+offset .. x+offset+side-1].
-    T is a running sum of running box sums B(y) = e[y] + ... + e[y+m-1], so every filter
-    costs O(1) per pixel. Runs start at >= thr_hi and end below thr_lo (hysteresis).
-    best, best_pos and count share one integer type, int16 when the response fits it
-    (twice the lanes per vector).
-    """
-    n_lines = e.shape[1]
-    ring = np.zeros((m, n_lines), np.int16)
-    tri = np.zeros(n_lines, np.int16)
-    box = np.zeros(n_lines, np.int16)
-    left = np.zeros(n_lines, np.int16)
-    right = np.zeros(n_lines, np.int16)
-    s = np.empty(n_lines, best.dtype)
-    levels = np.array([thr_hi, thr_lo, 1, 0, 0]).astype(best.dtype)
-    x = pad
-    for y in range(x - m + 1, x + 1):
-        slot = ring[y % m]
-        for i in range(y, y + m):
-            slot += e[i]
-        tri += slot
-    box[:] = ring[x % m]
-    for i in range(x - offset - side + 1, x - offset + 1):
-        left += e[i]
-    for i in range(x + offset, x + offset + side):
-        right += e[i]
-    best[:] = np.iinfo(best.dtype).min
-    best_pos[:] = -1
-    count[:] = 0
-    wc = s.dtype.type(m * m)
-    ws = s.dtype.type(side)
-    for p in range(n_pos):
-        x = pad + p
-        if p > 0:
-            _slide(box, e[x + m - 1], e[x - 1])
-            _triangle(tri, ring[x % m], box)
-            _slide(left, e[x - offset], e[x - offset - side])
-            _slide(right, e[x + offset + side - 1], e[x + offset - 1])
-        _response(s, tri, left, right, ws, wc)
-        _track(s, best, best_pos, count, p, levels)
-    for u in range(n_lines):
-        count[u] >>= 1
-
-
-# ---------------------------------------------------------------------------------
-# Pass 3: subpixel estimators on a background-free profile g (float64) around index i0.
-# Each returns the offset from i0 (NaN on failure); `clipped` marks saturated samples.
-
-EST_MAX, EST_GAUSS3, EST_BLAIS_RIOUX, EST_LSQ, EST_COM = range(5)
-COM_LEVEL = 0.5  # the centroid uses the peak above half its height
-
-# The per-line code passes whole buffers with a length n instead of slicing: a slice is a
-# new array whose reference counting costs more than the estimators themselves.
-
-
-@njit(cache=True, nogil=True, inline="always")
-def offset_gauss3(g: np.ndarray, n: int, i0: int) -> float:
-    """Three-point Gaussian: the vertex of the parabola through ln g at i0-1, i0, i0+1."""
-    if i0 < 1 or i0 + 1 >= n:
-        return np.nan
-    a, b, c = g[i0 - 1], g[i0], g[i0 + 1]
-    if a <= 0.0 or b <= 0.0 or c <= 0.0:
-        return np.nan
-    la, lb, lc = math.log(a), math.log(b), math.log(c)
-    den = la - 2.0 * lb + lc
-    if den >= 0.0:
-        return np.nan
-    d = 0.5 * (la - lc) / den
-    return d if abs(d) <= 1.0 else np.nan
-
-
-@njit(cache=True, nogil=True, inline="always")
-def offset_blais_rioux(g: np.ndarray, n: int, i0: int) -> float:
-    """Blais-Rioux: zero crossing of the filter h(i) = g(i-2) + g(i-1) - g(i+1) - g(i+2).
-
-    h rises through zero at the peak (negative on the rising side, positive after it).
-    """
-    if i0 < 3 or i0 + 3 >= n:
-        return np.nan
-    hm = g[i0 - 3] + g[i0 - 2] - g[i0] - g[i0 + 1]
-    h0 = g[i0 - 2] + g[i0 - 1] - g[i0 + 1] - g[i0 + 2]
-    hp = g[i0 - 1] + g[i0] - g[i0 + 2] - g[i0 + 3]
-    if h0 <= 0.0 < hp:
-        return h0 / (h0 - hp)
-    if hm <= 0.0 < h0:
-        return -1.0 + hm / (hm - h0)
-    return np.nan
-
-
-@njit(cache=True, nogil=True, inline="always")
-def offset_com(g: np.ndarray, n: int, i0: int, half: int) -> float:
-    """Centre of mass of g above COM_LEVEL of its height at i0, over the samples around i0
-    that stay above that level (within +- half): the tails and the background, where
-    noise and the scene's texture dominate, do not pull on it."""
-    level = COM_LEVEL * g[i0]
-    num = 0.0
-    den = 0.0
-    i = i0
-    while i >= max(0, i0 - half) and g[i] > level:
-        num += (g[i] - level) * (i - i0)
-        den += g[i] - level
-        i -= 1
-    i = i0 + 1
-    while i < min(n, i0 + half + 1) and g[i] > level:
-        num += (g[i] - level) * (i - i0)
-        den += g[i] - level
-        i += 1
-    return num / den if den > 0.0 else np.nan
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _half_crossings(g: np.ndarray, n: int, i0: int) -> tuple[float, float]:
-    """Positions where g falls to half of g[i0] on each side (NaN if a side is cut)."""
-    level = 0.5 * g[i0]
-    if not level > 0.0:
-        return np.nan, np.nan
-    i = i0
-    while i > 0 and g[i - 1] >= level:
-        i -= 1
-    j = i0
-    while j < n - 1 and g[j + 1] >= level:
-        j += 1
-    if i == 0 or j == n - 1:
-        return np.nan, np.nan
-    lo = i - (g[i] - level) / (g[i] - g[i - 1])
-    hi = j + (g[j] - level) / (g[j] - g[j + 1])
-    return lo, hi
-
-
-@njit(cache=True, nogil=True, inline="always")
-def offset_edges(g: np.ndarray, n: int, i0: int) -> float:
-    """Midpoint of the two half-height crossings (for clipped, flat-topped peaks)."""
-    lo, hi = _half_crossings(g, n, i0)
-    return 0.5 * (lo + hi) - i0
-
-
-@njit(cache=True, nogil=True, inline="always")
-def half_max_width(g: np.ndarray, n: int, i0: int) -> float:
-    """Full width at half of g[i0] (NaN if a side is cut)."""
-    lo, hi = _half_crossings(g, n, i0)
-    return hi - lo
-
-
-@njit(cache=True, nogil=True)
-def _gaussian_sums(g: np.ndarray, n: int, clipped: np.ndarray, amp: float, mu: float,
-                   sig: float, normal: np.ndarray) -> float:
-    """Cost of A exp(-(i-mu)^2 / 2 s^2) over unclipped samples; fills the normal equations.
-
-    normal holds JtJ (a11 a12 a13 a22 a23 a33) then Jt r (b1 b2 b3) for (A, mu, s).
-    The exponentials come from a recurrence: three exp calls per evaluation.
-    """
-    inv2 = 1.0 / (sig * sig)
-    e = math.exp(-0.5 * mu * mu * inv2)
-    q = math.exp(-(0.5 - mu) * inv2)
-    qq = math.exp(-inv2)
-    normal[:] = 0.0
-    cost = 0.0
-    for i in range(n):
-        if not clipped[i]:
-            d = i - mu
-            j2 = amp * e * d * inv2
-            j3 = j2 * d / sig
-            r = g[i] - amp * e
-            cost += r * r
-            normal[0] += e * e
-            normal[1] += e * j2
-            normal[2] += e * j3
-            normal[3] += j2 * j2
-            normal[4] += j2 * j3
-            normal[5] += j3 * j3
-            normal[6] += e * r
-            normal[7] += j2 * r
-            normal[8] += j3 * r
-        e *= q
-        q *= qq
-    return cost
-
-
-@njit(cache=True, nogil=True)
-def offset_lsq(g: np.ndarray, n: int, i0: int, clipped: np.ndarray, start: float,
-               sigma0: float, work: np.ndarray) -> float:
-    """Least-squares Gaussian A exp(-(i-mu)^2 / 2 s^2) over the unclipped samples.
-
-    Gauss-Newton from offset `start` and width `sigma0`, each step halved until the cost
-    falls, until the full step would move mu by less than 1e-3 px. Returns mu - i0, NaN with too few
-    samples on either side. work: scratch of 18 floats.
-    """
-    used = 0
-    left = False
-    right = False
-    for i in range(n):
-        if not clipped[i]:
-            used += 1
-            left = left or i < i0 + start
-            right = right or i > i0 + start
-    if used < 4 or not (left and right):
-        return np.nan
-    mu = i0 + start
-    # the amplitude that fits best at this centre, for each of a few widths: a clipped top
-    # hides both, and a poor start stalls the fit
-    amp, sig, best = 0.0, sigma0, np.inf
-    for scale in (0.6, 0.8, 1.0, 1.25):
-        trial_sig = sigma0 * scale
-        num = 0.0
-        den = 0.0
-        for i in range(n):
-            if not clipped[i]:
-                e = math.exp(-0.5 * ((i - mu) / trial_sig) ** 2)
-                num += g[i] * e
-                den += e * e
-        trial_amp = num / den if den > 0.0 else 0.0
-        cost = _gaussian_sums(g, n, clipped, trial_amp, mu, trial_sig, work[:9])
-        if trial_amp > 0.0 and cost < best:
-            amp, sig, best = trial_amp, trial_sig, cost
-    if not amp > 0.0:
-        return np.nan
-    normal = work[:9]
-    trial = work[9:18]
-    cost = _gaussian_sums(g, n, clipped, amp, mu, sig, normal)
-    for _ in range(20):
-        a11, a12, a13, a22, a23, a33, b1, b2, b3 = normal
-        c1 = a22 * a33 - a23 * a23
-        c2 = a12 * a33 - a23 * a13
-        c3 = a12 * a23 - a22 * a13
-        det = a11 * c1 - a12 * c2 + a13 * c3
-        if not abs(det) > 0.0:
-            return np.nan
-        da = (b1 * c1 - a12 * (b2 * a33 - a23 * b3) + a13 * (b2 * a23 - a22 * b3)) / det
-        dm = (a11 * (b2 * a33 - a23 * b3) - b1 * c2 + a13 * (a12 * b3 - b2 * a13)) / det
-        ds = (a11 * (a22 * b3 - b2 * a23) - a12 * (a12 * b3 - b2 * a13) + b1 * c3) / det
-        step = 1.0
-        accepted = False
-        for _ in range(10):
-            na, nm, ns = amp + step * da, mu + step * dm, sig + step * ds
-            if ns > 0.3 and abs(nm - i0) < 3.0:
-                new_cost = _gaussian_sums(g, n, clipped, na, nm, ns, trial)
-                if new_cost <= cost:
-                    amp, mu, sig, cost = na, nm, ns, new_cost
-                    normal[:] = trial
-                    accepted = True
-                    break
-            step *= 0.5
-        if not accepted or abs(dm) < 1e-3:
-            break
-    return mu - i0
-
-
-@njit(cache=True, nogil=True, inline="always")
-def peak_offset(g: np.ndarray, n: int, i0: int, clipped: np.ndarray, estimator: int,
-                half: int, work: np.ndarray) -> float:
-    """Subpixel offset of the peak of g[:n] from i0 with one estimator (NaN on failure);
-    work: scratch for the Gaussian fit (18 floats).
-
-    With two or more clipped samples the flat top carries no position: the Gaussian fit
-    uses the unclipped flanks and the other estimators the half-height edges.
-    """
-    if estimator == EST_MAX:
-        return 0.0
-    n_clipped = 0
-    for i in range(n):
-        n_clipped += clipped[i]
-    if n_clipped >= 2 and estimator != EST_LSQ:
-        return offset_edges(g, n, i0)
-    if estimator == EST_GAUSS3:
-        return offset_gauss3(g, n, i0)
-    if estimator == EST_BLAIS_RIOUX:
-        return offset_blais_rioux(g, n, i0)
-    if estimator == EST_COM:
-        return offset_com(g, n, i0, half)
-    start = offset_edges(g, n, i0) if n_clipped >= 2 else offset_gauss3(g, n, i0)
-    if not math.isfinite(start):
-        start = offset_com(g, n, i0, half)
-    if not math.isfinite(start):
-        return np.nan
-    width = half_max_width(g, n, i0)
-    sigma0 = width / 2.3548 if math.isfinite(width) and width > 0.7 else 1.5
-    return offset_lsq(g, n, i0, clipped, start, sigma0, work)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _gather(flat: np.ndarray, e: np.ndarray, pad: int, line: int, base: int, pos_stride: int,
-            channel: int, first: int, n: int, out: np.ndarray) -> None:
-    """Fit-channel values of positions first .. first+n-1 of a line into out[:n]."""
-    if channel == 0:
-        for k in range(n):
-            out[k] = flat[3 * (base + (first + k) * pos_stride) + 2]
-    elif channel == 1:
-        for k in range(n):
-            i = 3 * (base + (first + k) * pos_stride)
-            out[k] = 0.114 * flat[i] + 0.587 * flat[i + 1] + 0.299 * flat[i + 2]
-    else:
-        for k in range(n):
-            out[k] = e[pad + first + k, line]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _background(vals: np.ndarray, n: int, k0: int, offset: int, side: int) -> float:
-    """The lower of the two side means around k0 (a side cut by the line end is skipped)."""
-    lo_sum = 0.0
-    hi_sum = 0.0
-    lo_n = 0
-    hi_n = 0
-    for j in range(offset, offset + side):
-        if k0 - j >= 0:
-            lo_sum += vals[k0 - j]
-            lo_n += 1
-        if k0 + j < n:
-            hi_sum += vals[k0 + j]
-            hi_n += 1
-    if lo_n == 0 and hi_n == 0:
-        return 0.0
-    if lo_n == 0:
-        return hi_sum / hi_n
-    if hi_n == 0:
-        return lo_sum / lo_n
-    return min(lo_sum / lo_n, hi_sum / hi_n)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _integer_peak(vals: np.ndarray, n: int, c: int, m: int, sat: float) -> int:
-    """The highest sample within m-1 of c, or the middle of its clipped plateau (which may
-    be wider than the ridge window)."""
-    k0 = c
-    for k in range(max(0, c - m + 1), min(n, c + m)):
-        if vals[k] > vals[k0]:
-            k0 = k
-    if vals[k0] >= sat:
-        a = k0
-        b = k0
-        while a > 0 and vals[a - 1] >= sat:
-            a -= 1
-        while b < n - 1 and vals[b + 1] >= sat:
-            b += 1
-        k0 = (a + b) // 2
-    return k0
-
-
-@njit(cache=True, nogil=True)
-def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_stride: int,
-               pos_stride: int, lo: int, hi: int, best: np.ndarray, best_pos: np.ndarray,
-               count: np.ndarray, thr: int, scale: float, m: int, offset: int, side: int,
-               half: int, estimator: int, channel: int, sat: float, red_min: float,
-               peak: np.ndarray, strength: np.ndarray, width: np.ndarray,
-               contrast: np.ndarray, flags: np.ndarray) -> None:
-    """Subpixel peak and quality figures for the lines lo..hi-1 (see `extract_stripe`).
-
-    A white clipped peak needs a flank with a red excess of at least red_min.
-    """
-    reach = max(offset + side, half) + m
-    vals = np.empty(2 * reach + 1)
-    g = np.empty(2 * half + 1)
-    clipped = np.zeros(2 * half + 1, np.bool_)
-    work = np.empty(18)
-    for line in range(lo, hi):
-        contrast[line] = best[line] * scale
-        if best[line] < thr or best_pos[line] < 0:
-            flags[line] |= NONE_FOUND
-            continue
-        if count[line] >= 2:
-            flags[line] |= MULTIPLE
-        first = max(0, best_pos[line] - reach)
-        n_buf = min(n_pos, best_pos[line] + reach + 1) - first
-        base = line * line_stride
-        _gather(flat, e, pad, line, base, pos_stride, channel, first, n_buf, vals)
-        k0 = _integer_peak(vals, n_buf, best_pos[line] - first, m, sat)
-        centre = 3 * (base + (first + k0) * pos_stride)
-        if flat[centre + 2] >= sat:
-            flags[line] |= SATURATED
-            if max(flat[centre], flat[centre + 1]) > WHITE_CAP and not _red_flank(
-                    flat, base, pos_stride, n_pos, first + k0, offset + side, sat, red_min):
-                flags[line] |= NOT_RED
-                continue
-        bg = _background(vals, n_buf, k0, offset, side)
-        w0 = max(0, k0 - half)
-        n_win = min(n_buf, k0 + half + 1) - w0
-        if n_win < 2 * half + 1:
-            flags[line] |= AT_EDGE
-        for k in range(n_win):
-            g[k] = vals[w0 + k] - bg
-            clipped[k] = vals[w0 + k] >= sat
-        d = peak_offset(g, n_win, k0 - w0, clipped, estimator, half, work)
-        if not math.isfinite(d) or abs(d) > half:
-            d = 0.0
-            flags[line] |= FIT_FAILED
-        peak[line] = first + k0 + d
-        strength[line] = g[k0 - w0]
-        width[line] = half_max_width(g, n_win, k0 - w0)
-
-
-@njit(cache=True, nogil=True)
-def _red_flank(flat: np.ndarray, base: int, pos_stride: int, n_pos: int, x0: int, reach: int,
-               sat: float, level: float) -> bool:
-    """True if, beside the white core at x0, one of the first two pixels on either side
-    within `reach` whose green and blue are not clipped has a red excess r - max(g, b) of
-    at least `level`."""
-    for direction in (-1, 1):
-        x = x0 + direction
-        seen = 0
-        while 0 <= x < n_pos and abs(x - x0) <= reach and seen < 2:
-            i = 3 * (base + x * pos_stride)
-            other = max(flat[i], flat[i + 1])
-            if other < sat:
-                if float(flat[i + 2]) - other >= level:
-                    return True
-                seen += 1
-            x += direction
-    return False
-
-
-@njit(cache=True, nogil=True)
-def drop_isolated(peak: np.ndarray, flags: np.ndarray, lo: int, hi: int, support: int,
-                  max_jump: float) -> None:
-    """NaN (and flag ISOLATED) the peaks of lines lo..hi-1 that lack `support` neighbours.
-
-    A neighbour is a peak on one of the `support` lines either side whose position is
-    within max_jump per line of separation: the stripe is continuous across lines, camera
-    noise is not. Counting neighbours rather than unbroken runs keeps two stripes whose
-    best peaks alternate from line to line.
-    """
-    keep = np.zeros(hi - lo, np.bool_)
-    for i in range(lo, hi):
-        if not math.isfinite(peak[i]):
-            continue
-        count = 0
-        for j in range(max(lo, i - support), min(hi, i + support + 1)):
-            if j != i and abs(peak[j] - peak[i]) <= max_jump * abs(j - i):
-                count += 1
-        keep[i - lo] = count >= support
-    for i in range(lo, hi):
-        if math.isfinite(peak[i]) and not keep[i - lo]:
-            peak[i] = np.nan
-            flags[i] |= ISOLATED
-
-
-# ---------------------------------------------------------------------------------
 
 
 def check_frame(image: np.ndarray, image_size: tuple[int, int] | None = None,
@@ -816,9 +224,9 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserSettings | None = None)
     e = np.empty((n_pos + 2 * pad, n_lines), np.int16)
     e[:pad] = 0
     e[pad + n_pos:] = 0
-    evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
+    lk.evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
                     np.uint8(s.saturation), pad, e)
-    noise = evidence_noise(e, pad, n_pos, 4)
+    noise = lk.evidence_noise(e, pad, n_pos, 4)
     noise_thr = (max(s.min_threshold, s.noise_factor * noise) if s.threshold == "auto"
                  else float(s.threshold))
     unit = m * m * side
@@ -828,7 +236,7 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserSettings | None = None)
     best = np.empty(n_lines, kind)
     best_pos = np.empty(n_lines, kind)
     count = np.empty(n_lines, kind)
-    ridge_kernel(e, n_pos, pad, m, offset, side, min(noise_int, 2**15 - 1),
+    lk.ridge_kernel(e, n_pos, pad, m, offset, side, min(noise_int, 2**15 - 1),
                  min(noise_int // 2, 2**15 - 1), best, best_pos, count)
     thr = noise_thr
     if s.threshold == "auto" and hi > lo:
@@ -841,16 +249,16 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserSettings | None = None)
     line_width = np.full(n_lines, np.nan, np.float32)
     contrast = np.full(n_lines, np.nan, np.float32)
     flags = np.zeros(n_lines, np.uint8)
-    flags[:lo] = SKIPPED
-    flags[hi:] = SKIPPED
+    flags[:lo] = lk.SKIPPED
+    flags[hi:] = lk.SKIPPED
     line_stride, pos_stride = (width, 1) if by_rows else (1, width)
-    fit_kernel(flat, e, pad, n_pos, line_stride, pos_stride, lo, hi, best, best_pos, count,
+    lk.fit_kernel(flat, e, pad, n_pos, line_stride, pos_stride, lo, hi, best, best_pos, count,
                thr_int, 1.0 / unit, m, offset, side, half, ESTIMATORS.index(s.estimator),
                FIT_CHANNELS.index(s.fit_channel), float(s.saturation),
                max(s.min_threshold, s.noise_factor * noise), peak, strength, line_width,
                contrast, flags)
     if s.support > 0:
-        drop_isolated(peak, flags, lo, hi, s.support, 2.0 * s.stripe_width)
+        lk.drop_isolated(peak, flags, lo, hi, s.support, 2.0 * s.stripe_width)
     return StripeResult(peak=peak, strength=strength, width=line_width, contrast=contrast,
                         candidates=np.minimum(count, 255).astype(np.uint8), flags=flags,
                         threshold=thr, colour_threshold=t)

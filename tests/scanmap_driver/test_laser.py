@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import curve_fit
 
-from scanmap_driver import laser
+from scanmap_driver import laser, laser_kernels
 from scanmap_driver.errors import ScanError
 from scanmap_driver.laser import Flag, LaserSettings, extract_stripe
 from tests.conftest import real_data
@@ -26,7 +26,7 @@ def evidence_reference(image: np.ndarray, dark: bool, t: int, sat: int) -> np.nd
     if dark:
         return np.where(((r > t) & (g < t) & (b < t)) | (r >= sat), r, 0).astype(np.int16)
     other = np.maximum(g, b)
-    return r - np.where(r >= sat, np.minimum(other, laser.WHITE_CAP), other)
+    return r - np.where(r >= sat, np.minimum(other, laser_kernels.WHITE_CAP), other)
 
 
 def ridge_reference(e: np.ndarray, pad: int, m: int, offset: int, side: int) -> np.ndarray:
@@ -101,7 +101,7 @@ def test_evidence_kernel_matches_numpy(dark, by_rows):
     if by_rows:
         ref = ref.T
     out = np.zeros((ref.shape[0] + 2 * pad, ref.shape[1]), np.int16)
-    laser.evidence_kernel(image.reshape(-1), 24, 31, by_rows, dark, np.uint8(120),
+    laser_kernels.evidence_kernel(image.reshape(-1), 24, 31, by_rows, dark, np.uint8(120),
                           np.uint8(240), pad, out)
     assert np.array_equal(out[pad:-pad], ref)
     assert not out[:pad].any() and not out[-pad:].any()
@@ -120,7 +120,7 @@ def test_ridge_kernel_matches_numpy(windows):
     best = np.empty(n_lines, np.int32)
     pos = np.empty(n_lines, np.int32)
     count = np.empty(n_lines, np.int32)
-    laser.ridge_kernel(e, n_pos, pad, m, offset, side, hi, hi // 2, best, pos, count)
+    laser_kernels.ridge_kernel(e, n_pos, pad, m, offset, side, hi, hi // 2, best, pos, count)
     assert np.array_equal(best, ref.max(0))
     assert np.array_equal(pos, ref.argmax(0))
     assert np.array_equal(count, runs_reference(ref, hi, hi // 2))
@@ -140,7 +140,7 @@ def test_red_statistics_and_colour_threshold_match_numpy(by_rows):
     rng = np.random.default_rng(6)
     image = rng.integers(0, 256, (30, 41, 3), dtype=np.uint8)
     red = image[:, :, 2].astype(float)
-    mean, level = laser.red_statistics(image.reshape(-1), 30, 41, by_rows)
+    mean, level = laser_kernels.red_statistics(image.reshape(-1), 30, 41, by_rows)
     assert mean == pytest.approx(red.mean())
     assert level == np.median(red.max(axis=1 if by_rows else 0))
     t = laser.automatic_colour_threshold(image.reshape(-1), 30, 41, by_rows)
@@ -150,7 +150,7 @@ def test_red_statistics_and_colour_threshold_match_numpy(by_rows):
 def test_drop_isolated_example():
     peak = np.array([10.0, 11.0, 12.0, np.nan, 50.0, 13.0, 14.0, 15.0, 16.0])
     flags = np.zeros(9, np.uint8)
-    laser.drop_isolated(peak, flags, 0, 9, 2, 3.0)
+    laser_kernels.drop_isolated(peak, flags, 0, 9, 2, 3.0)
     assert np.isnan(peak[4]) and flags[4] == Flag.ISOLATED  # 50: no neighbour
     assert np.all(np.isfinite(np.delete(peak, [3, 4]))) and not np.delete(flags, 4).any()
 
@@ -165,7 +165,7 @@ def test_drop_isolated_matches_numpy(seed, support):
     expected = isolated_reference(peak, support, 4.0)
     flags = np.zeros(40, np.uint8)
     out = peak.copy()
-    laser.drop_isolated(out, flags, 0, 40, support, 4.0)
+    laser_kernels.drop_isolated(out, flags, 0, 40, support, 4.0)
     assert np.array_equal(np.isfinite(out), expected)
     assert np.array_equal(flags == Flag.ISOLATED, np.isfinite(peak) & ~expected)
 
@@ -177,14 +177,14 @@ def test_estimators_on_sampled_gaussian(offset, sigma):
     x = np.arange(11.0)
     g = gaussian(x, 100.0, 5 + offset, sigma)
     clipped = np.zeros(11, bool)
-    assert laser.offset_gauss3(g, 11, 5) == pytest.approx(offset, abs=1e-9)
-    assert laser.offset_gauss3(g, 11, 5) == pytest.approx(gauss3_reference(g, 5), abs=1e-12)
-    assert laser.offset_blais_rioux(g, 11, 5) == pytest.approx(
+    assert laser_kernels.offset_gauss3(g, 11, 5) == pytest.approx(offset, abs=1e-9)
+    assert laser_kernels.offset_gauss3(g, 11, 5) == pytest.approx(gauss3_reference(g, 5), abs=1e-12)
+    assert laser_kernels.offset_blais_rioux(g, 11, 5) == pytest.approx(
         blais_rioux_reference(g, 5), abs=1e-12)
-    assert laser.offset_blais_rioux(g, 11, 5) == pytest.approx(offset, abs=0.06)
-    lsq = laser.peak_offset(g, 11, 5, clipped, laser.EST_LSQ, 5, WORK)
+    assert laser_kernels.offset_blais_rioux(g, 11, 5) == pytest.approx(offset, abs=0.06)
+    lsq = laser_kernels.peak_offset(g, 11, 5, clipped, laser_kernels.EST_LSQ, 5, WORK)
     assert lsq == pytest.approx(offset, abs=2e-3)  # stops at steps below 1e-3 px
-    com = laser.offset_com(g, 11, 5, 5)
+    com = laser_kernels.offset_com(g, 11, 5, 5)
     assert com == pytest.approx(com_reference(g, 5, 5), abs=1e-12)
 
 
@@ -198,12 +198,12 @@ def test_lsq_on_clipped_noisy_peak_agrees_with_scipy(offset, level, seed):
     top = level * 100.0
     clipped = g >= top
     g = np.minimum(g, top)
-    ours = laser.peak_offset(g, 13, 6, clipped, laser.EST_LSQ, 6, WORK)
+    ours = laser_kernels.peak_offset(g, 13, 6, clipped, laser_kernels.EST_LSQ, 6, WORK)
     keep = ~clipped
     popt, _ = curve_fit(gaussian, x[keep], g[keep], p0=(100.0, 6 + offset, 1.8))
     assert ours == pytest.approx(popt[1] - 6, abs=0.02)  # ill-conditioned when clipped
     if clipped.sum() >= 2:  # the others use the half-height edges of the flat top
-        edges = laser.peak_offset(g, 13, 6, clipped, laser.EST_BLAIS_RIOUX, 6, WORK)
+        edges = laser_kernels.peak_offset(g, 13, 6, clipped, laser_kernels.EST_BLAIS_RIOUX, 6, WORK)
         assert edges == pytest.approx(offset, abs=0.25)
 
 
@@ -213,8 +213,8 @@ def test_estimators_are_shift_equivariant():
     g = gaussian(x, 80.0, 9.3, 1.5) + rng.normal(0, 2, 20)
     clipped = np.zeros(20, bool)
     for est in range(5):
-        a = laser.peak_offset(g, 20, 9, clipped, est, 5, WORK) + 9
-        b = laser.peak_offset(g[1:], 19, 8, clipped, est, 5, WORK) + 8 + 1
+        a = laser_kernels.peak_offset(g, 20, 9, clipped, est, 5, WORK) + 9
+        b = laser_kernels.peak_offset(g[1:], 19, 8, clipped, est, 5, WORK) + 8 + 1
         assert a == pytest.approx(b, abs=1e-9)
 
 
