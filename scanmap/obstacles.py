@@ -83,23 +83,28 @@ class Clearance:
 
 
 @njit(cache=True, nogil=True)
-def cell_boxes(state, points, geo, unknown_blocks) -> np.ndarray:
-    """(ny, nx, 4) boxes (x lo, y lo, x hi, y hi) to measure distances to, branch-free: an
-    obstacle cell's measured point, an unknown cell's square (with `unknown_blocks`), and
-    +inf elsewhere (clamping a query into it gives an infinite distance)."""
+def cell_boxes(state, points, geo) -> tuple[np.ndarray, np.ndarray]:
+    """What distances are measured to, one record per cell of the window grown by a border
+    of one cell (flat, row-major: cell (y, x) is record (y + 1) * (nx + 2) + x + 1), +inf
+    on the border and where there is nothing (a query's distance to it is infinite):
+    boxes (x lo, y lo, x hi, y hi) of the cells not known free (an obstacle cell's
+    measured point, an unknown cell's square), and the obstacle cells' points (x, y)."""
     ny, nx = state.shape
-    boxes = np.full((ny, nx, 4), np.inf)
+    width = nx + 2
+    boxes = np.full(((ny + 2) * width, 4), np.inf)
+    obstacle_points = np.full(((ny + 2) * width, 2), np.inf)
     for y in range(ny):
         for x in range(nx):
+            b = (y + 1) * width + x + 1
             if state[y, x] == OBSTACLE:
-                boxes[y, x, 0] = boxes[y, x, 2] = points[y, x, 0]
-                boxes[y, x, 1] = boxes[y, x, 3] = points[y, x, 1]
-            elif state[y, x] == UNKNOWN and unknown_blocks:
-                boxes[y, x, 0] = geo[0] + x * geo[2]
-                boxes[y, x, 1] = geo[1] + y * geo[2]
-                boxes[y, x, 2] = boxes[y, x, 0] + geo[2]
-                boxes[y, x, 3] = boxes[y, x, 1] + geo[2]
-    return boxes
+                boxes[b, 0] = boxes[b, 2] = obstacle_points[b, 0] = points[y, x, 0]
+                boxes[b, 1] = boxes[b, 3] = obstacle_points[b, 1] = points[y, x, 1]
+            elif state[y, x] == UNKNOWN:
+                boxes[b, 0] = geo[0] + x * geo[2]
+                boxes[b, 1] = geo[1] + y * geo[2]
+                boxes[b, 2] = boxes[b, 0] + geo[2]
+                boxes[b, 3] = boxes[b, 1] + geo[2]
+    return boxes, obstacle_points
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -108,76 +113,122 @@ def _clamp(q: float, lo: float, hi: float) -> float:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def query_point(qx, qy, boxes, nearest, state, geo, unknown_blocks):
-    """(distance, point x, point y, kind) of the nearest obstacle to (qx, qy), or with
-    `unknown_blocks` of the nearest cell not known free (beyond the window is unknown).
+def _nearest_box(qx, qy, boxes, k, width):
+    """Squared distance from (qx, qy) to the nearest of the 3 x 3 boxes around record k
+    (never on the border), and that box's record (-1 when all are infinite). Compiles
+    to running minima, without branches to mispredict."""
+    best, arg = np.inf, -1
+    for dy in range(-1, 2):
+        for dx in range(-1, 2):
+            j = k + dy * width + dx
+            px = _clamp(qx, boxes[j, 0], boxes[j, 2]) - qx
+            py = _clamp(qy, boxes[j, 1], boxes[j, 3]) - qy
+            d = px * px + py * py
+            if d < best:
+                best, arg = d, j
+    return best, arg
 
-    `nearest` is the matching distance field's nearest-cell index and `boxes` the matching
-    `cell_boxes`; the answer is refined over the 3 x 3 cells around the field's nearest.
-    """
-    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
-    gx, gy = (qx - ox) / res, (qy - oy) / res
-    best, bx, by, kind = np.inf, qx, qy, FREE  # best: squared distance
-    if unknown_blocks:
-        if not (0.0 <= gx < nx and 0.0 <= gy < ny):
-            return 0.0, qx, qy, UNKNOWN
-        ix, iy = int(gx), int(gy)
-        if state[iy, ix] != FREE:
-            b = boxes[iy, ix]
-            return 0.0, _clamp(qx, b[0], b[2]), _clamp(qy, b[1], b[3]), np.int64(state[iy, ix])
-        left, right, bottom, top = qx - ox, ox + nx * res - qx, qy - oy, oy + ny * res - qy
-        edge = min(left, right, bottom, top)
-        best, kind = edge * edge, UNKNOWN
-        if edge == left:
-            bx = ox
-        elif edge == right:
-            bx = ox + nx * res
-        elif edge == bottom:
-            by = oy
-        else:
-            by = oy + ny * res
-    else:
-        ix = min(max(math.floor(gx), 0), nx - 1)
-        iy = min(max(math.floor(gy), 0), ny - 1)
-    k = nearest[iy, ix]
-    if k >= 0:
-        cy, cx = k // nx, k % nx
-        wy, wx = -1, -1
-        for yy in range(max(cy - 1, 0), min(cy + 2, ny)):
-            for xx in range(max(cx - 1, 0), min(cx + 2, nx)):
-                b = boxes[yy, xx]
-                px, py = _clamp(qx, b[0], b[2]), _clamp(qy, b[1], b[3])
-                d = (px - qx) * (px - qx) + (py - qy) * (py - qy)
-                if d < best:
-                    best, bx, by, wy, wx = d, px, py, yy, xx
-        if wy >= 0:
-            kind = np.int64(state[wy, wx])
-    return math.sqrt(best), bx, by, kind
+
+@njit(cache=True, nogil=True, inline="always")
+def _nearest_point(qx, qy, points, k, width):
+    """`_nearest_box` for points (x, y): half the loads and no clamping."""
+    best, arg = np.inf, -1
+    for dy in range(-1, 2):
+        for dx in range(-1, 2):
+            j = k + dy * width + dx
+            px, py = points[j, 0] - qx, points[j, 1] - qy
+            d = px * px + py * py
+            if d < best:
+                best, arg = d, j
+    return best, arg
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _window_edge(qx, qy, ox, oy, xmax, ymax):
+    """Distance from (qx, qy), inside the window [ox, xmax) x [oy, ymax), to its edge."""
+    return min(qx - ox, xmax - qx, qy - oy, ymax - qy)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cell_of(qx, qy, ox, oy, inv, nx, ny):
+    """(column, row) of the window cell holding (qx, qy), or of the window's cell nearest
+    it, and whether the window holds it. inv: 1 / resolution."""
+    gx, gy = (qx - ox) * inv, (qy - oy) * inv
+    inside = 0.0 <= gx < nx and 0.0 <= gy < ny  # False for NaN
+    ix = min(max(int(min(max(gx, 0.0), nx - 1.0)), 0), nx - 1)
+    iy = min(max(int(min(max(gy, 0.0), ny - 1.0)), 0), ny - 1)
+    return ix, iy, inside
 
 
 @njit(cache=True, nogil=True)
-def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, boxes_blocked,
-              boxes_obstacle, geo):
-    """(clearance, kind of what limits it, obstacle distance, obstacle x, obstacle y)."""
-    clearance, _, _, kind = query_point(qx, qy, boxes_blocked, nearest_blocked, state, geo,
-                                        True)
-    d, px, py, _ = query_point(qx, qy, boxes_obstacle, nearest_obstacle, state, geo, False)
-    if d <= clearance:  # the two refinements may settle on different cells
+def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, boxes, points, geo):
+    """(clearance, kind of what limits it, obstacle distance, obstacle x, obstacle y).
+
+    The obstacle distance is to the nearest measured obstacle point, refined over the
+    3 x 3 cells around the obstacle field's nearest cell (from the window's nearest cell
+    when the query is outside it). The clearance is the distance to the nearest thing not
+    known free, refined likewise around the blocked field's nearest (0 in or beyond the
+    window's unknown or occupied cells), and never more than the obstacle distance (the
+    two refinements may settle on different cells).
+    """
+    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    width = nx + 2
+    ix, iy, inside = _cell_of(qx, qy, ox, oy, 1.0 / res, nx, ny)
+    d2, px, py = np.inf, qx, qy
+    k = nearest_obstacle[iy, ix]
+    if k >= 0:
+        d2, j = _nearest_point(qx, qy, points, k, width)
+        if j >= 0:
+            px, py = points[j, 0], points[j, 1]
+    d = math.sqrt(d2)
+    if not inside:
+        return 0.0, UNKNOWN, d, px, py
+    if state[iy, ix] != FREE:
+        return 0.0, np.int64(state[iy, ix]), d, px, py
+    edge = _window_edge(qx, qy, ox, oy, ox + nx * res, oy + ny * res)
+    best, kind = edge * edge, UNKNOWN
+    k = nearest_blocked[iy, ix]
+    if k >= 0:
+        c2, j = _nearest_box(qx, qy, boxes, k, width)
+        if c2 < best:
+            best, kind = c2, np.int64(state[j // width - 1, j % width - 1])
+    clearance = math.sqrt(best)
+    if d <= clearance:
         clearance, kind = d, OBSTACLE
     return clearance, kind, d, px, py
 
 
 @njit(cache=True, nogil=True)
-def query_points(xy, state, nearest_blocked, nearest_obstacle, boxes_blocked, boxes_obstacle,
-                 geo, unknown_blocks, out):
-    """Clearance (unknown_blocks) or obstacle distance of each (x, y) row (see query_one)."""
+def query_points(xy, state, nearest_blocked, nearest_obstacle, boxes, points, geo,
+                 unknown_blocks, out):
+    """Clearance (unknown_blocks) or obstacle distance of each (x, y) row, as `query_one`.
+
+    The loop touches no array object but the data (no reference counting), divides by
+    nothing, and skips the obstacle refinement when the two fields name the same cell
+    (the blocked one then covered the same obstacle points).
+    """
+    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    inv, xmax, ymax = 1.0 / res, ox + nx * res, oy + ny * res
+    width = nx + 2
     for i in range(xy.shape[0]):
-        d = query_point(xy[i, 0], xy[i, 1], boxes_obstacle, nearest_obstacle, state, geo,
-                        False)[0]
+        qx, qy = xy[i, 0], xy[i, 1]
+        ix, iy, inside = _cell_of(qx, qy, ox, oy, inv, nx, ny)
+        if unknown_blocks and not (inside and state[iy, ix] == FREE):
+            out[i] = 0.0
+            continue
+        best = np.inf
+        k = nearest_obstacle[iy, ix]
         if unknown_blocks:
-            d = min(d, query_point(xy[i, 0], xy[i, 1], boxes_blocked, nearest_blocked, state,
-                                   geo, True)[0])
-        out[i] = d
+            edge = _window_edge(qx, qy, ox, oy, xmax, ymax)
+            best = edge * edge
+            blocked = nearest_blocked[iy, ix]
+            if blocked >= 0:
+                best = min(best, _nearest_box(qx, qy, boxes, blocked, width)[0])
+            if blocked == k:
+                k = -1
+        if k >= 0:
+            best = min(best, _nearest_point(qx, qy, points, k, width)[0])
+        out[i] = math.sqrt(best)
 
 
 @njit(cache=True, nogil=True)
@@ -216,8 +267,9 @@ def polar_kernel(qx, qy, yaw, max_range, state, boxes, geo, ranges, kinds):
         for x in range(x_lo, x_hi):
             if state[y, x] == FREE:
                 continue
-            b = boxes[y, x]
-            r = math.hypot(_clamp(qx, b[0], b[2]) - qx, _clamp(qy, b[1], b[3]) - qy)
+            b = (y + 1) * (nx + 2) + x + 1
+            r = math.hypot(_clamp(qx, boxes[b, 0], boxes[b, 2]) - qx,
+                           _clamp(qy, boxes[b, 1], boxes[b, 3]) - qy)
             if r > max_range:
                 continue
             cx, cy = ox + (x + 0.5) * res - qx, oy + (y + 0.5) * res - qy
@@ -282,45 +334,41 @@ def polygon_margin(polygon, radius, state, points, geo):
 @dataclass(frozen=True, eq=False)
 class ObstacleSnapshot:
     """One consistent obstacle map (immutable): the segmentation, two distance fields (over
-    cells not known free, and over obstacle cells only) with their `cell_boxes`, and the
-    data time."""
+    cells not known free, and over obstacle cells only; their nearest cells are records
+    of `cell_boxes`), the boxes and obstacle points of `cell_boxes`, and the data time."""
 
     segmentation: Segmentation
     nearest_blocked: np.ndarray
     nearest_obstacle: np.ndarray
-    boxes_blocked: np.ndarray
-    boxes_obstacle: np.ndarray
+    boxes: np.ndarray
+    points: np.ndarray
     stamp: float
     geometry: np.ndarray  # origin x, origin y, resolution, nx, ny
 
     @classmethod
     def from_segmentation(cls, seg: Segmentation, stamp: float) -> ObstacleSnapshot:
         """Build both distance fields and freeze every array."""
-        _, blocked = distance_transform(seg.state != FREE)
-        _, obstacle = distance_transform(seg.state == OBSTACLE)
+        _, blocked = distance_transform(seg.state != FREE, pad=1)
+        _, obstacle = distance_transform(seg.state == OBSTACLE, pad=1)
         ny, nx = seg.shape
         geometry = np.array([seg.origin[0], seg.origin[1], seg.resolution, nx, ny], np.float64)
-        boxes_blocked = cell_boxes(seg.state, seg.points, geometry, True)
-        boxes_obstacle = cell_boxes(seg.state, seg.points, geometry, False)
+        boxes, points = cell_boxes(seg.state, seg.points, geometry)
         for array in (seg.state, seg.points, seg.floor_height, seg.is_floor, seg.band_logodds,
-                      seg.updated, blocked, obstacle, boxes_blocked, boxes_obstacle, geometry):
+                      seg.updated, blocked, obstacle, boxes, points, geometry):
             array.setflags(write=False)
-        return cls(seg, blocked, obstacle, boxes_blocked, boxes_obstacle, float(stamp),
-                   geometry)
+        return cls(seg, blocked, obstacle, boxes, points, float(stamp), geometry)
 
     def query(self, x: float, y: float) -> tuple[float, int, float, float, float]:
         """(clearance, what limits it, obstacle distance, obstacle x, obstacle y)."""
         return query_one(float(x), float(y), self.segmentation.state, self.nearest_blocked,
-                         self.nearest_obstacle, self.boxes_blocked, self.boxes_obstacle,
-                         self.geometry)
+                         self.nearest_obstacle, self.boxes, self.points, self.geometry)
 
     def distances(self, points: np.ndarray, unknown_blocks: bool) -> np.ndarray:
         """Clearance (unknown_blocks) or obstacle distance of each (x, y) row."""
         xy = np.ascontiguousarray(np.asarray(points, dtype=np.float64)[:, :2])
         out = np.empty(len(xy))
         query_points(xy, self.segmentation.state, self.nearest_blocked, self.nearest_obstacle,
-                     self.boxes_blocked, self.boxes_obstacle, self.geometry, unknown_blocks,
-                     out)
+                     self.boxes, self.points, self.geometry, unknown_blocks, out)
         return out
 
 
@@ -435,7 +483,7 @@ class ObstacleMap:
         if snap is not None:
             s = snap.segmentation
             polar_kernel(float(x), float(y), float(yaw), float(max_range), s.state,
-                         snap.boxes_blocked,
+                         snap.boxes,
                          snap.geometry, ranges, kinds)
             status = Status.UNKNOWN if (kinds == UNKNOWN).any() else Status.OK
         return PolarScan(angles, ranges, kinds, age, status)

@@ -11,11 +11,12 @@ from scipy import ndimage
 from scanmap.distance_field import distance_transform
 
 
-def check_against_scipy(mask: np.ndarray) -> None:
-    distance, nearest = distance_transform(mask)
+def check_against_scipy(mask: np.ndarray, pad: int = 0) -> None:
+    distance, nearest = distance_transform(mask, pad)
     reference = ndimage.distance_transform_edt(~mask)
     np.testing.assert_allclose(distance, reference, rtol=1e-6, atol=1e-5)
-    rows, cols = np.unravel_index(nearest, mask.shape)
+    rows, cols = np.unravel_index(nearest, (mask.shape[0] + 2 * pad, mask.shape[1] + 2 * pad))
+    rows, cols = rows - pad, cols - pad  # the index counts the padded array's cells
     assert mask[rows, cols].all()  # the index names a feature ...
     yy, xx = np.indices(mask.shape)
     np.testing.assert_allclose(np.hypot(rows - yy, cols - xx), reference, rtol=1e-6, atol=1e-5)
@@ -23,9 +24,9 @@ def check_against_scipy(mask: np.ndarray) -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(arrays(np.bool_, st.tuples(st.integers(1, 40), st.integers(1, 40)),
-              elements=st.booleans()).filter(lambda m: m.any()))
-def test_matches_scipy_on_random_masks(mask):
-    check_against_scipy(mask)
+              elements=st.booleans()).filter(lambda m: m.any()), st.integers(0, 2))
+def test_matches_scipy_on_random_masks(mask, pad):
+    check_against_scipy(mask, pad)
 
 
 def test_matches_scipy_on_a_sparse_large_mask():

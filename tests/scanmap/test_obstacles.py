@@ -94,6 +94,47 @@ def test_distance_matches_brute_force_over_the_blocked_cells(room):
     assert len(xs) == seg.shape[1] and len(ys) == seg.shape[0]
 
 
+def reference_distances(snap: ObstacleSnapshot, q: np.ndarray) -> tuple[np.ndarray,
+                                                                         np.ndarray]:
+    """Clearance and obstacle distance of the queries, in numpy: the 3 x 3 cells around
+    each field's nearest cell (the window's cell nearest the query when outside)."""
+    seg = snap.segmentation
+    ny, nx = seg.shape
+    width = nx + 2
+    grid = (q - seg.origin) * (1.0 / seg.resolution)
+    inside = ((grid >= 0) & (grid < (nx, ny))).all(axis=1)
+    ix = np.clip(grid[:, 0], 0, nx - 1).astype(int)
+    iy = np.clip(grid[:, 1], 0, ny - 1).astype(int)
+    around = (np.arange(-1, 2)[:, None] * width + np.arange(-1, 2)).ravel()
+
+    def refined(nearest: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        k = nearest[iy, ix]
+        b = boxes[np.maximum(k, width + 1)[:, None] + around]  # (n, 9, 4)
+        gap = np.clip(q[:, None, :], b[..., :2], b[..., 2:]) - q[:, None, :]
+        return np.where(k >= 0, np.sqrt((gap ** 2).sum(-1).min(1)), np.inf)
+
+    obstacle = refined(snap.nearest_obstacle, np.hstack([snap.points, snap.points]))
+    x0, y0 = seg.origin
+    edge = np.minimum.reduce([q[:, 0] - x0, x0 + nx * seg.resolution - q[:, 0],
+                              q[:, 1] - y0, y0 + ny * seg.resolution - q[:, 1]])
+    clearance = np.minimum.reduce([refined(snap.nearest_blocked, snap.boxes), obstacle,
+                                   edge])
+    free = inside & (seg.state[iy, ix] == FREE)
+    return np.where(free, clearance, 0.0), obstacle
+
+
+def test_distance_kernels_match_a_numpy_reference(room):
+    _, _, obstacles, _ = room
+    rng = np.random.default_rng(4)
+    q = np.vstack([rng.uniform(-3.5, 3.5, (3000, 2)),  # some beyond the window
+                   np.round(rng.uniform(-3.0, 3.0, (500, 2)) / 0.05) * 0.05])  # on edges
+    clearance, obstacle = reference_distances(obstacles.snapshot, q)
+    np.testing.assert_allclose(obstacles.distance(q), clearance, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(obstacles.obstacle_distance(q), obstacle, rtol=0, atol=1e-12)
+    single = np.array([obstacles.nearest(x, y).clearance for x, y in q[::10]])
+    np.testing.assert_allclose(single, clearance[::10], rtol=0, atol=1e-12)
+
+
 def test_unknown_space_is_never_reported_free(room):
     _, grid, obstacles, _ = room
     seg = obstacles.snapshot.segmentation
