@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import pkgutil
 import platform
 import sys
@@ -27,7 +28,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="small sizes, for CI")
     parser.add_argument("--only", nargs="*", default=None, help="topics, e.g. triangulation")
     parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument("--replot", action="store_true",
+                        help="only redraw latest.md and latest.png from latest.json")
     args = parser.parse_args(argv)
+    if args.replot:
+        rows = json.loads((args.out / "latest.json").read_text())["rows"]
+        write_table_and_plot(rows, args.out)
+        return 0
     rows, failures = [], []
     for info in sorted(pkgutil.iter_modules(benchmarks.__path__), key=lambda m: m.name):
         if not info.name.startswith("bench_"):
@@ -55,11 +62,16 @@ def main(argv: list[str] | None = None) -> int:
               "failed": failures, "rows": rows}
     args.out.mkdir(parents=True, exist_ok=True)
     write_json(args.out / "latest.json", result)
-    with atomic_path(args.out / "latest.md") as tmp:
-        tmp.write_text(markdown_table(rows) + "\n")
-    speed_error_plot(rows, args.out / "latest.png")
+    write_table_and_plot(rows, args.out)
     print(f"wrote {args.out}/latest.json, latest.md, latest.png")
     return 1 if failures else 0
+
+
+def write_table_and_plot(rows: list[dict], out: Path) -> None:
+    """latest.md (the table) and latest.png (speed against error) from the rows."""
+    with atomic_path(out / "latest.md") as tmp:
+        tmp.write_text(markdown_table(rows) + "\n")
+    speed_error_plot(rows, out / "latest.png")
 
 
 if __name__ == "__main__":

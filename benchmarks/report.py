@@ -47,43 +47,49 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def _plottable(row: dict[str, Any]) -> bool:
+    """A row with a positive error and a time: a point on a log-log speed-error plot."""
+    return bool(row.get("median_s")) and (row.get("error") or 0.0) > 0.0
+
+
 def speed_error_plot(rows: list[dict[str, Any]], path: Path) -> None:
-    """Scatter of median time against error, one panel per stage, peers in grey."""
+    """Median time against error, one panel per stage; ours in blue, peers in grey."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     stages = [s for s in dict.fromkeys(r.get("stage") for r in rows)
-              if any(r.get("error") is not None and r.get("median_s") for r in rows
-                     if r.get("stage") == s)]
+              if any(_plottable(r) for r in rows if r.get("stage") == s)]
     if not stages:
         return
     cols = min(3, len(stages))
     nrows = math.ceil(len(stages) / cols)
-    fig, axes = plt.subplots(nrows, cols, figsize=(5 * cols, 3.6 * nrows), squeeze=False)
+    fig, axes = plt.subplots(nrows, cols, figsize=(5.2 * cols, 3.8 * nrows), squeeze=False)
     for ax, stage in zip(axes.flat, stages, strict=False):
-        for row in (r for r in rows if r.get("stage") == stage):
-            if row.get("error") is None or not row.get("median_s"):
-                continue
-            ax.scatter(row["median_s"], max(row["error"], 1e-12), color="tab:blue")
-            ax.annotate(row.get("method", ""), (row["median_s"], max(row["error"], 1e-12)),
-                        fontsize=7)
+        stage_rows = [r for r in rows if r.get("stage") == stage and _plottable(r)]
+        for row in stage_rows:
+            ax.scatter(row["median_s"], row["error"], color="tab:blue", zorder=3)
+            ax.annotate(row.get("method", "")[:28], (row["median_s"], row["error"]),
+                        fontsize=6, xytext=(3, 3), textcoords="offset points")
             for name, peer in (row.get("peers") or {}).items():
-                if peer.get("median_s") and peer.get("error") is not None:
-                    ax.scatter(peer["median_s"], max(peer["error"], 1e-12), color="grey",
-                               marker="s")
-                    ax.annotate(name, (peer["median_s"], max(peer["error"], 1e-12)),
-                                fontsize=7, color="grey")
+                if peer.get("median_s") and (peer.get("error") or 0.0) > 0.0:
+                    ax.scatter(peer["median_s"], peer["error"], color="grey", marker="s",
+                               s=14, zorder=2)
+                    ax.annotate(name[:20], (peer["median_s"], peer["error"]), fontsize=6,
+                                color="grey", xytext=(3, -7), textcoords="offset points")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        unit = next((r.get("error_unit", "") for r in rows if r.get("stage") == stage), "")
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_minor_formatter(NullFormatter())
         ax.set_title(stage, fontsize=9)
-        ax.set_xlabel("median time (s)")
-        ax.set_ylabel(f"error ({unit})")
+        ax.set_xlabel("median time (s)", fontsize=8)
+        ax.set_ylabel(stage_rows[0].get("error_unit", "error")[:40], fontsize=7)
+        ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(stages):]:
         ax.axis("off")
     fig.tight_layout()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
+        fig.savefig(tmp, dpi=80, format="png")
     plt.close(fig)
