@@ -4,6 +4,10 @@ TUM format (one pose per line): `t tx ty tz qx qy qz qw`, `#` starts a comment. 
 ATE (absolute trajectory error, RMSE of positions after an optional SE(2)/SE(3)
 alignment: Umeyama/Horn least squares) and relative errors over segments of a given
 travelled length (1 m by default), which measure local drift without alignment.
+
+A reference that is itself an estimate (the corrected poses of a real log) has errors
+of its own, which every estimate scored against it inherits. `shared_error` measures
+them: what two independent estimates' relative errors have in common is the reference's.
 """
 
 from __future__ import annotations
@@ -125,15 +129,21 @@ def ate_rmse(estimate: np.ndarray, reference: np.ndarray, align: Alignment = "se
 class RelativeErrors:
     """Errors of relative motions over segments of (about) `length` metres of travel.
 
-    translation (K,) m and rotation (K,) rad: |error of the motion from pose i to pose j|,
-    with j the first pose at least `length` further along the reference path.
-    travelled (K,): the reference path length of each segment.
+    vectors (K, 3) m: translation of the error of the motion from pose i to pose j (in
+    pose i's reference frame), with j the first pose at least `length` further along the
+    reference path; translation (K,) m: their lengths; rotation (K,) rad: the error's
+    angle. travelled (K,): the reference path length of each segment.
     """
 
     length: float
-    translation: np.ndarray
+    vectors: np.ndarray
     rotation: np.ndarray
     travelled: np.ndarray
+
+    @property
+    def translation(self) -> np.ndarray:
+        """(K,) translational error of each segment (m)."""
+        return np.linalg.norm(self.vectors, axis=1)
 
     @property
     def mean_translation(self) -> float:
@@ -158,14 +168,49 @@ def relative_errors(estimate: np.ndarray, reference: np.ndarray,
     ends = np.searchsorted(distance, distance + length, side="left")
     starts = np.flatnonzero(ends < len(distance))
     ends = ends[starts]
-    trans, rot = [], []
-    for i, j in zip(starts, ends, strict=True):
+    vectors, rot = np.zeros((starts.size, 3)), np.zeros(starts.size)
+    for k, (i, j) in enumerate(zip(starts, ends, strict=True)):
         ref_motion = invert_pose(reference[i]) @ reference[j]
         est_motion = invert_pose(estimate[i]) @ estimate[j]
         error = invert_pose(ref_motion) @ est_motion
-        trans.append(np.linalg.norm(error[:3, 3]))
-        rot.append(np.arccos(np.clip((np.trace(error[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)))
-    return RelativeErrors(length, np.array(trans), np.array(rot), distance[ends] - distance[starts])
+        vectors[k] = error[:3, 3]
+        rot[k] = np.arccos(np.clip((np.trace(error[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))
+    return RelativeErrors(length, vectors, rot, distance[ends] - distance[starts])
+
+
+def shared_error(first: RelativeErrors, second: RelativeErrors) -> float:
+    """Mean translational error (m) the two estimates' relative errors have in common.
+
+    Each estimate's error against the reference is its own error minus the reference's.
+    When the two estimates err independently of each other, the mean of the product
+    first.vectors x second.vectors^T is the second moment of the reference's error alone;
+    this returns the mean length of a zero-mean Gaussian with that second moment: what a
+    perfect estimate would score against this reference. Estimates whose errors share a
+    cause (the same scans, the same kind of matcher) make it an upper bound.
+    """
+    if first.vectors.shape != second.vectors.shape or not first.vectors.size:
+        raise MapError(f"shared_error: need relative errors over the same segments, got "
+                       f"{first.vectors.shape} and {second.vectors.shape}")
+    moment = first.vectors.T @ second.vectors / len(first.vectors)
+    variances = np.linalg.eigvalsh((moment + moment.T) / 2.0)
+    return _mean_gaussian_length(np.sqrt(np.clip(variances, 0.0, None)))
+
+
+def _mean_gaussian_length(sigmas: np.ndarray) -> float:
+    """E|x| for x ~ N(0, diag(sigmas^2)) in 3-D.
+
+    x = diag(sigmas) r u with r = |z| (chi, 3 dof, mean 2 sqrt(2/pi)) independent of the
+    direction u, uniform on the sphere: E|x| = E[r] E|diag(sigmas) u|, the second a smooth
+    integral over the sphere (Gauss-Legendre in cos(theta), uniform in phi).
+    """
+    cos_theta, weights = np.polynomial.legendre.leggauss(48)
+    phi = (np.arange(96) + 0.5) * (2.0 * np.pi / 96)
+    sin_theta = np.sqrt(1.0 - cos_theta ** 2)
+    u = np.stack([np.outer(sin_theta, np.cos(phi)), np.outer(sin_theta, np.sin(phi)),
+                  np.outer(cos_theta, np.ones_like(phi))])
+    stretched = np.sqrt(np.tensordot(np.asarray(sigmas) ** 2, u ** 2, axes=1))
+    direction_mean = float(weights @ stretched.mean(axis=1)) / 2.0
+    return 2.0 * np.sqrt(2.0 / np.pi) * direction_mean
 
 
 def _matched(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

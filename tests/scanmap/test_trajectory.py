@@ -9,10 +9,12 @@ from hypothesis import strategies as st
 
 from scanmap.trajectory import (
     Trajectory,
+    _mean_gaussian_length,
     align_points,
     ate_rmse,
     read_tum,
     relative_errors,
+    shared_error,
     write_tum,
 )
 from scanmap_driver.errors import MapError
@@ -106,6 +108,60 @@ def test_relative_error_sees_a_heading_error_along_a_segment():
     i = np.arange(len(xs) - 2)
     np.testing.assert_allclose(errors.rotation, 0.02, atol=1e-9)
     np.testing.assert_allclose(errors.translation, 2 * np.sin(0.005 * i), atol=1e-9)
+
+
+def _wander(rng, n, step=0.5):
+    """A planar path: steps of `step` m with random turns."""
+    x = y = theta = 0.0
+    poses = []
+    for _ in range(n):
+        poses.append(se2_to_pose(x, y, theta))
+        theta += rng.normal(0.0, 0.3)
+        x, y = x + step * np.cos(theta), y + step * np.sin(theta)
+    return np.array(poses)
+
+
+def _jitter(rng, poses, sigma, sigma_heading):
+    """Each pose moved by independent Gaussian noise (m, rad) in its own frame."""
+    return np.array([p @ se2_to_pose(*rng.normal(0.0, sigma, 2), rng.normal(0.0, sigma_heading))
+                     for p in poses])
+
+
+def test_shared_error_finds_the_error_of_a_noisy_reference():
+    # The reference is the truth with per-pose noise; two estimates are the truth with
+    # larger, independent noise. What their errors share is what the truth itself scores.
+    rng = np.random.default_rng(3)
+    truth = _wander(rng, 4000)
+    reference = _jitter(rng, truth, 0.015, 0.004)
+    first, second = (_jitter(rng, truth, s, 0.008) for s in (0.03, 0.04))
+    against = [relative_errors(e, reference, 1.0) for e in (first, second)]
+    truth_score = relative_errors(truth, reference, 1.0).mean_translation
+    assert shared_error(*against) == pytest.approx(truth_score, rel=0.15)  # ~10% scatter
+    assert min(a.mean_translation for a in against) > 2 * truth_score  # each alone overstates
+
+
+def test_shared_error_of_independent_errors_against_a_perfect_reference_is_small():
+    rng = np.random.default_rng(4)
+    truth = _wander(rng, 4000)
+    first, second = (relative_errors(_jitter(rng, truth, 0.03, 0.008), truth, 1.0)
+                     for _ in range(2))
+    assert shared_error(first, second) < 0.25 * first.mean_translation
+
+
+def test_shared_error_needs_the_same_segments():
+    rng = np.random.default_rng(5)
+    truth = _wander(rng, 40)
+    with pytest.raises(MapError, match="same segments"):
+        shared_error(relative_errors(truth, truth, 1.0), relative_errors(truth[:20], truth[:20]))
+
+
+@pytest.mark.parametrize(("sigmas", "expected"), [
+    ((1.0, 0.0, 0.0), np.sqrt(2 / np.pi)),        # half-normal
+    ((2.0, 2.0, 0.0), 2.0 * np.sqrt(np.pi / 2)),  # Rayleigh
+    ((1.0, 1.0, 1.0), 2.0 * np.sqrt(2 / np.pi)),  # Maxwell
+])
+def test_mean_gaussian_length_matches_closed_forms(sigmas, expected):
+    assert _mean_gaussian_length(np.array(sigmas)) == pytest.approx(expected, rel=5e-4)
 
 
 def test_mismatched_trajectories_are_refused():
