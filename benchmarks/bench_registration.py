@@ -44,7 +44,7 @@ from scanmap.registration import (
     prepare_source,
     register_scan,
 )
-from scanmap.trajectory import ate_rmse, relative_errors
+from scanmap.trajectory import ate_rmse, relative_errors, shared_error
 from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, se2_to_pose
 
@@ -269,32 +269,117 @@ def _scores(poses: np.ndarray, seconds: list[float], seq: Sequence) -> dict:
             "rel_1m_m": relative.mean_translation, "drift_per_m": relative.per_metre}
 
 
-def compare(seq: Sequence) -> dict:
-    """One row: ours on `seq`, every peer in `peers`."""
-    ours = _scores(*run_ours(seq), seq)
+def compare(seq: Sequence) -> list[dict]:
+    """Ours and every peer on `seq`: one row; on a real log also the rows that judge its
+    reference (`reference_noise`, `scan_agreement`)."""
+    runs = {"ours": run_ours(seq)}
     peers = {}
     for name, method in METHODS.items():
         try:
-            peers[name] = _scores(*method(seq), seq)
+            runs[name] = method(seq)
         except Exception as exc:  # a peer that fails is reported, not fatal
             peers[name] = {"failed": f"{type(exc).__name__}: {exc}"}
-    odometry = np.array([seq.reference[0] @ invert_pose(seq.scans[0].odom_start)
-                         @ s.odom_start for s in seq.scans])
-    peers["odometry alone"] = _scores(odometry, [0.0], seq)
+    runs["odometry alone"] = (np.array([seq.reference[0] @ invert_pose(seq.scans[0].odom_start)
+                                        @ s.odom_start for s in seq.scans]), [0.0])
+    ours = _scores(*runs["ours"], seq)
+    peers |= {name: _scores(*run, seq) for name, run in runs.items() if name != "ours"}
     real = seq.name.startswith("real")
-    if real:
-        peers["floor: ours from the reference poses"] = _scores(reference_floor(seq), [0.0], seq)
     key = "rel_1m_m" if real else "ate_m"
     for values in peers.values():
         if key in values:
             values["error"] = values[key]
     points = int(np.median([len(s) for s in seq.scans]))
-    return {"stage": "registration", "method": "ours: ScanOdometry (planar, scan-to-map)",
-            "settings": f"{seq.name}, {len(seq.scans)} scans, {points} points/scan",
-            "median_s": ours["median_s"], "error": ours[key],
-            "error_unit": "m, mean error of 1 m relative motions" if real
-            else "m, ATE RMSE (SE(2)-aligned)",
-            **{k: v for k, v in ours.items() if k != "median_s"}, "peers": peers}
+    row = {"stage": "registration", "method": "ours: ScanOdometry (planar, scan-to-map)",
+           "settings": f"{seq.name}, {len(seq.scans)} scans, {points} points/scan",
+           "median_s": ours["median_s"], "error": ours[key],
+           "error_unit": "m, mean error of 1 m relative motions" if real
+           else "m, ATE RMSE (SE(2)-aligned)",
+           **{k: v for k, v in ours.items() if k != "median_s"}, "peers": peers}
+    if not real:
+        return [row]
+    return [row, reference_noise(seq), scan_agreement({"reference poses": seq.reference}
+                                                      | {n: r[0] for n, r in runs.items()}, seq)]
+
+
+def reference_noise(seq: Sequence) -> dict:
+    """How far a perfect estimate would score from this log's reference: its own error.
+
+    Two matchers, each started at the reference pose of every scan against the previous
+    scans placed at their reference poses (ours; small_gicp against the last 10 scans),
+    err against the reference by their own error plus the reference's; what the two
+    share (`shared_error`) is the reference's.
+    """
+    floors = {"ours from the reference poses": reference_floor(seq),
+              "small_gicp from the reference poses": small_gicp_floor(seq)}
+    errors = {name: relative_errors(poses, seq.reference, 1.0) for name, poses in floors.items()}
+    return {"stage": "registration", "method": "reference noise: error of a perfect estimate",
+            "settings": f"{seq.name}: what two matchers from the reference poses share",
+            "median_s": None, "error": shared_error(*errors.values()),
+            "error_unit": "m, mean error of 1 m relative motions",
+            "peers": {name: {"error": e.mean_translation} for name, e in errors.items()}}
+
+
+def small_gicp_floor(seq: Sequence, previous: int = 10) -> np.ndarray:
+    """small_gicp GICP of each scan, from its reference pose, against the `previous` scans
+    before it placed at their reference poses."""
+    import small_gicp
+
+    origin = seq.reference[0][:3, 3].copy()
+    reference = seq.reference.copy()
+    reference[:, :3, 3] -= origin
+    world = [seq.peer_points(k) @ reference[k][:3, :3].T + reference[k][:3, 3]
+             for k in range(len(seq.scans))]
+    poses = [reference[0]]
+    for k in range(1, len(seq.scans)):
+        target = small_gicp.preprocess_points(np.vstack(world[max(0, k - previous):k]),
+                                              downsampling_resolution=seq.peer_voxel,
+                                              num_neighbors=20, num_threads=1)
+        source = small_gicp.preprocess_points(seq.peer_points(k),
+                                              downsampling_resolution=seq.peer_voxel,
+                                              num_neighbors=20, num_threads=1)
+        result = small_gicp.align(target[0], source[0], target[1], reference[k],
+                                  registration_type="GICP",
+                                  max_correspondence_distance=seq.peer_correspondence,
+                                  num_threads=1)
+        poses.append(np.asarray(result.T_target_source))
+    poses = np.array(poses)
+    poses[:, :3, 3] += origin
+    return poses
+
+
+def scan_agreement(trajectories: dict[str, np.ndarray], seq: Sequence, lag: int = 2) -> dict:
+    """A measure without a reference: how well each trajectory lays scan k onto scan k-lag.
+
+    Per scan, the median distance of its points to the line through their two nearest
+    neighbours in scan k-lag (2-D, within 0.3 m); the row's figure is the median over
+    the scans. Scans 2 apart are about 1.3 m apart on the logs: the 1 m scale.
+    """
+    from scipy.spatial import cKDTree
+
+    clouds = [seq.peer_points(k)[:, :2] for k in range(len(seq.scans))]
+    clouds = [np.unique(c, axis=0) for c in clouds]  # extruded copies share x, y
+
+    def residual(poses: np.ndarray) -> float:
+        xy = [c @ p[:2, :2].T + p[:2, 3] for c, p in zip(clouds, poses, strict=True)]
+        medians = []
+        for k in range(lag, len(xy)):
+            distance, index = cKDTree(xy[k - lag]).query(xy[k], k=2, distance_upper_bound=0.3)
+            near = np.isfinite(distance).all(axis=1)
+            if near.sum() < 10:
+                continue
+            a, b = xy[k - lag][index[near, 0]], xy[k - lag][index[near, 1]]
+            tangent = (b - a) / np.maximum(np.linalg.norm(b - a, axis=1, keepdims=True), 1e-9)
+            offset = xy[k][near] - a
+            medians.append(np.median(np.abs(offset[:, 0] * tangent[:, 1]
+                                            - offset[:, 1] * tangent[:, 0])))
+        return float(np.median(medians))
+
+    figures = {name: residual(poses) for name, poses in trajectories.items()}
+    return {"stage": "registration", "method": "scan agreement (no reference needed)",
+            "settings": f"{seq.name}: scan k on scan k-{lag}, median point-to-line distance",
+            "median_s": None, "error": figures.pop("ours"),
+            "error_unit": "m, median point-to-line distance",
+            "peers": {name: {"error": value} for name, value in figures.items()}}
 
 
 def timing_20k(seq: Sequence, quick: bool) -> dict:
@@ -338,7 +423,9 @@ def run(quick: bool = False, only: str | None = None) -> list[dict]:
     rows = []
     if only is None or only in "timing":
         rows.append(timing_20k(builders["sim-corridor"](), quick))
-    rows += [compare(build()) for key, build in builders.items() if only is None or only in key]
+    for key, build in builders.items():
+        if only is None or only in key:
+            rows += compare(build())
     return rows
 
 
