@@ -70,6 +70,11 @@ class Sequence:
         """Odometry increment from scan k-1 to scan k."""
         return invert_pose(self.scans[k - 1].odom_start) @ self.scans[k].odom_start
 
+    def odometry_poses(self) -> np.ndarray:
+        """(N, 4, 4) the wheel odometry alone, started at the first reference pose."""
+        start = self.reference[0] @ invert_pose(self.scans[0].odom_start)
+        return np.array([start @ s.odom_start for s in self.scans])
+
     def peer_points(self, k: int) -> np.ndarray:
         """Scan k's points as the peers get them: in range, float64, extruded if 2-D."""
         points = self.scans[k].points.astype(np.float64)
@@ -279,8 +284,7 @@ def compare(seq: Sequence) -> list[dict]:
             runs[name] = method(seq)
         except Exception as exc:  # a peer that fails is reported, not fatal
             peers[name] = {"failed": f"{type(exc).__name__}: {exc}"}
-    runs["odometry alone"] = (np.array([seq.reference[0] @ invert_pose(seq.scans[0].odom_start)
-                                        @ s.odom_start for s in seq.scans]), [0.0])
+    runs["odometry alone"] = (seq.odometry_poses(), [0.0])
     ours = _scores(*runs["ours"], seq)
     peers |= {name: _scores(*run, seq) for name, run in runs.items() if name != "ours"}
     real = seq.name.startswith("real")
@@ -304,19 +308,25 @@ def compare(seq: Sequence) -> list[dict]:
 def reference_noise(seq: Sequence) -> dict:
     """How far a perfect estimate would score from this log's reference: its own error.
 
-    Two matchers, each started at the reference pose of every scan against the previous
-    scans placed at their reference poses (ours; small_gicp against the last 10 scans),
-    err against the reference by their own error plus the reference's; what the two
-    share (`shared_error`) is the reference's.
+    Estimates err against the reference by their own error plus the reference's; what two
+    of them share (`shared_error`) is the reference's, if their own errors are
+    independent. Three estimates, in pairs: two matchers each started at the reference
+    pose of every scan, against the previous scans placed at their reference poses (ours;
+    small_gicp against the last 10 scans), and the wheel odometry, a sensor the matchers'
+    errors cannot share. The row's figure is the two matchers' share.
     """
-    floors = {"ours from the reference poses": reference_floor(seq),
-              "small_gicp from the reference poses": small_gicp_floor(seq)}
-    errors = {name: relative_errors(poses, seq.reference, 1.0) for name, poses in floors.items()}
+    errors = {name: relative_errors(poses, seq.reference, 1.0) for name, poses in
+              (("ours", reference_floor(seq)), ("small_gicp", small_gicp_floor(seq)),
+               ("odometry", seq.odometry_poses()))}
+    peers = {f"{name} from the reference poses": {"error": errors[name].mean_translation}
+             for name in ("ours", "small_gicp")}
+    peers |= {f"shared by {name} and odometry": {"error": shared_error(errors[name],
+                                                                        errors["odometry"])}
+              for name in ("ours", "small_gicp")}
     return {"stage": "registration", "method": "reference noise: error of a perfect estimate",
-            "settings": f"{seq.name}: what two matchers from the reference poses share",
-            "median_s": None, "error": shared_error(*errors.values()),
-            "error_unit": "m, mean error of 1 m relative motions",
-            "peers": {name: {"error": e.mean_translation} for name, e in errors.items()}}
+            "settings": f"{seq.name}: what ours and small_gicp from the reference poses share",
+            "median_s": None, "error": shared_error(errors["ours"], errors["small_gicp"]),
+            "error_unit": "m, mean error of 1 m relative motions", "peers": peers}
 
 
 def small_gicp_floor(seq: Sequence, previous: int = 10) -> np.ndarray:
