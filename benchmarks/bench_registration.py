@@ -20,6 +20,9 @@ heights) so that their normals and covariances exist; ours uses the 2-D points.
 Errors: ATE RMSE after SE(2) alignment, mean translational error of 1 m relative motions,
 and drift per metre; time per scan is the median wall time of one registration including
 its preprocessing. A separate row times ours on 20,000-point scans (the issue's budget).
+On the real logs two more rows judge the reference itself: its own error
+(`reference_noise`) and how well each trajectory lays the scans onto each other
+(`scan_agreement`, no reference needed).
 """
 
 from __future__ import annotations
@@ -218,21 +221,27 @@ def run_open3d(seq: Sequence, method: str) -> tuple[np.ndarray, list[float]]:
     return _scan_to_scan(seq, prepare, align)
 
 
-def run_small_gicp(seq: Sequence) -> tuple[np.ndarray, list[float]]:
+def _gicp_prepare(seq: Sequence, points: np.ndarray):
+    """small_gicp's downsampled cloud and KD-tree of `points`, single-threaded."""
     import small_gicp
 
-    def prepare(points):
-        return small_gicp.preprocess_points(points, downsampling_resolution=seq.peer_voxel,
-                                            num_neighbors=20, num_threads=1)
+    return small_gicp.preprocess_points(points, downsampling_resolution=seq.peer_voxel,
+                                        num_neighbors=20, num_threads=1)
 
-    def align(source, target, guess):
-        result = small_gicp.align(target[0], source[0], target[1], guess,
-                                  registration_type="GICP",
-                                  max_correspondence_distance=seq.peer_correspondence,
-                                  num_threads=1)
-        return np.asarray(result.T_target_source)
 
-    return _scan_to_scan(seq, prepare, align)
+def _gicp_align(seq: Sequence, source, target, guess: np.ndarray) -> np.ndarray:
+    """small_gicp GICP of a prepared `source` onto a prepared `target` from `guess`."""
+    import small_gicp
+
+    result = small_gicp.align(target[0], source[0], target[1], guess, registration_type="GICP",
+                              max_correspondence_distance=seq.peer_correspondence,
+                              num_threads=1)
+    return np.asarray(result.T_target_source)
+
+
+def run_small_gicp(seq: Sequence) -> tuple[np.ndarray, list[float]]:
+    return _scan_to_scan(seq, lambda points: _gicp_prepare(seq, points),
+                         lambda source, target, guess: _gicp_align(seq, source, target, guess))
 
 
 def run_kiss(seq: Sequence) -> tuple[np.ndarray, list[float]]:
@@ -332,8 +341,6 @@ def reference_noise(seq: Sequence) -> dict:
 def small_gicp_floor(seq: Sequence, previous: int = 10) -> np.ndarray:
     """small_gicp GICP of each scan, from its reference pose, against the `previous` scans
     before it placed at their reference poses."""
-    import small_gicp
-
     origin = seq.reference[0][:3, 3].copy()
     reference = seq.reference.copy()
     reference[:, :3, 3] -= origin
@@ -341,17 +348,9 @@ def small_gicp_floor(seq: Sequence, previous: int = 10) -> np.ndarray:
              for k in range(len(seq.scans))]
     poses = [reference[0]]
     for k in range(1, len(seq.scans)):
-        target = small_gicp.preprocess_points(np.vstack(world[max(0, k - previous):k]),
-                                              downsampling_resolution=seq.peer_voxel,
-                                              num_neighbors=20, num_threads=1)
-        source = small_gicp.preprocess_points(seq.peer_points(k),
-                                              downsampling_resolution=seq.peer_voxel,
-                                              num_neighbors=20, num_threads=1)
-        result = small_gicp.align(target[0], source[0], target[1], reference[k],
-                                  registration_type="GICP",
-                                  max_correspondence_distance=seq.peer_correspondence,
-                                  num_threads=1)
-        poses.append(np.asarray(result.T_target_source))
+        target = _gicp_prepare(seq, np.vstack(world[max(0, k - previous):k]))
+        source = _gicp_prepare(seq, seq.peer_points(k))
+        poses.append(_gicp_align(seq, source, target, reference[k]))
     poses = np.array(poses)
     poses[:, :3, 3] += origin
     return poses
