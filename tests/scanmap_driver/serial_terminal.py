@@ -20,6 +20,7 @@ class Terminal:
     def __init__(self, port: str) -> None:
         self.link = serial.Serial(port, 115200, timeout=0.05)
         self.events: list[str] = []
+        self._partial = b""  # a line cut by a timeout: its end comes with the next read
 
     def send(self, data: bytes) -> None:
         self.link.write(data)
@@ -27,16 +28,15 @@ class Terminal:
     def line(self, timeout: float = 2.0) -> str | None:
         """The next reply body, or None after `timeout` s."""
         deadline = time.monotonic() + timeout
-        buffer = b""
         while time.monotonic() < deadline:
-            buffer += self.link.read(1)
-            if buffer.endswith(b"\n"):
-                text = buffer[:-1].decode("ascii")
+            self._partial += self.link.read(1)
+            if self._partial.endswith(b"\n"):
+                text = self._partial[:-1].decode("ascii")
+                self._partial = b""
                 body, star, given = text.rpartition("*")
                 assert star and given == xor_checksum(body), text
                 if body.startswith("!"):
                     self.events.append(body)
-                    buffer = b""
                     continue
                 return body
         return None
