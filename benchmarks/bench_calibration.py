@@ -19,7 +19,7 @@ import numpy as np
 from scanmap_driver import reference_scanner, triangulate
 from scanmap_driver.calibration.wall import apply_corrections, calibrate_wall_recordings
 from scanmap_driver.encoder import decode_heading, fill_unreadable, laser_line_range
-from scanmap_driver.laser import LaserSettings, extract_stripe
+from scanmap_driver.laser import LaserConfig, extract_stripe
 from scanmap_driver.recording import Recording
 from scanmap_driver.sim import builtin_scene, load_scene
 from scanmap_driver.sim.simulate import simulate_recording
@@ -45,7 +45,7 @@ def wall_scene(folder: Path, distance: float):
 def range_errors(recording: Recording, model) -> tuple[np.ndarray, np.ndarray]:
     """Horizontal range error (m) and true range of every detected truth line."""
     truth = np.load(recording.ground_truth / "scan_0000.npz")
-    settings = LaserSettings(line_range=laser_line_range(model))
+    settings = LaserConfig(line_range=laser_line_range(model))
     frames = list(recording.frames(0))
     results = [decode_heading(f.image, model) for f in frames]
     headings = fill_unreadable(np.array([r.heading for r in results]),

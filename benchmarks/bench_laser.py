@@ -2,7 +2,7 @@
 and fit channel), encoder decoding (heading error), and the whole per-frame budget
 (extraction + decoding + triangulation, goal < 0.5 ms per 640x480 frame on one core);
 MJPG decoding of the frame apart. Truth: synthetic frames with exact stripe centres and
-forward-rendered disk frames (tests/scanmap_driver/synthetic_frames.py); the real
+forward-rendered disk frames (scanmap_driver/sim/synthetic_frames.py); the real
 laser-on/laser-off pairs when ../shared/data/real is present.
 
 Run: python -m benchmarks.bench_laser [--quick]
@@ -21,10 +21,10 @@ import numpy as np
 
 from benchmarks.timing import first_call_time, median_time
 from scanmap_driver.encoder import decode_heading, laser_line_range
-from scanmap_driver.laser import ESTIMATORS, LaserSettings, extract_stripe
+from scanmap_driver.laser import ESTIMATORS, LaserConfig, extract_stripe
 from scanmap_driver.scanner_model import reference_scanner
+from scanmap_driver.sim.synthetic_frames import disk_frame, stripe_frame
 from scanmap_driver.triangulation import triangulate
-from tests.scanmap_driver.synthetic_frames import disk_frame, stripe_frame
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "laser" / \
     "ciclop_3dscanscience" / "3.1_laser_segmentation"
@@ -44,7 +44,7 @@ def median_cpu_time(func: Callable[[], object], repeats: int) -> float:
     return median_time(func, repeats, clock=time.thread_time)
 
 
-def stripe_errors(settings: LaserSettings, frames: dict) -> dict[str, tuple[float, float]]:
+def stripe_errors(settings: LaserConfig, frames: dict) -> dict[str, tuple[float, float]]:
     """Per condition: (RMS error px of the found peaks, fraction of lines found right)."""
     out = {}
     for name, pairs in frames.items():
@@ -78,7 +78,7 @@ def real_agreement() -> tuple[float, float] | None:
         return None
     on = cv2.imread(str(REAL / "laser.png"))
     off = cv2.imread(str(REAL / "laser_background.png"))
-    settings = LaserSettings(axis="rows", stripe_width=8.0)
+    settings = LaserConfig(axis="rows", stripe_width=8.0)
     result = extract_stripe(on, settings)
     diff = np.clip(on[:, :, 2].astype(np.float32) - off[:, :, 2], 0, None)
     smooth = cv2.GaussianBlur(diff, (0, 0), 2.0)
@@ -110,7 +110,7 @@ def run(quick: bool = False) -> list[dict]:
     naive_s = median_time(lambda: naive_peak(timing_frame), repeats=repeats)
     for channel in ("red", "luma"):
         for estimator in ESTIMATORS:
-            settings = LaserSettings(estimator=estimator, fit_channel=channel)
+            settings = LaserConfig(estimator=estimator, fit_channel=channel)
             errors = stripe_errors(settings, frames)
             rows.append({
                 "stage": "laser extraction", "method": f"{estimator} on {channel}",
@@ -123,7 +123,7 @@ def run(quick: bool = False) -> list[dict]:
                 "peers": {"naive eq.1 argmax + gauss3 (numpy)": {
                     "median_s": naive_s, "error": naive["mjpg"]}},
             })
-    dark = LaserSettings(method="dark")
+    dark = LaserConfig(method="dark")
     rows.append({
         "stage": "laser extraction",
         "method": f"dark method (eq. 1), {dark.estimator} on {dark.fit_channel}",
@@ -151,7 +151,7 @@ def run(quick: bool = False) -> list[dict]:
 
     frame = timing_frame.copy()
     frame[:, 560:] = disk_frames["blur 4 px"][0][:, 560:]
-    laser = LaserSettings(line_range=laser_line_range(model))
+    laser = LaserConfig(line_range=laser_line_range(model))
 
     def whole_frame():
         stripe = extract_stripe(frame, laser)

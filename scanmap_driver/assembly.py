@@ -17,7 +17,7 @@ import numpy as np
 
 from .encoder import coverage, decode_heading, fill_unreadable, laser_line_range
 from .errors import ScanError
-from .laser import LaserSettings, extract_stripe
+from .laser import LaserConfig, extract_stripe
 from .scan import Scan
 from .scanner_model import ScannerModel
 from .triangulation import Reason, triangulate
@@ -75,9 +75,9 @@ def colour_beside_stripe(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.
 class ScanAssembler:
     """Collects frames of one scan, then builds the `Scan` (see the module docstring)."""
 
-    def __init__(self, model: ScannerModel, laser: LaserSettings | None = None) -> None:
+    def __init__(self, model: ScannerModel, laser: LaserConfig | None = None) -> None:
         self.model = model
-        self.laser = laser or LaserSettings(line_range=laser_line_range(model))
+        self.laser = laser or LaserConfig(line_range=laser_line_range(model))
         self._frames: list[_FrameData] = []
         self._previous_heading: float | None = None
 

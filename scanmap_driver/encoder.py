@@ -47,8 +47,9 @@ COARSE_STEPS = 8  # candidate headings per sector in the coarse search
 
 
 @dataclass(frozen=True)
-class EncoderSettings:
-    """Decoding parameters.
+class EncoderConfig:
+    """Configures heading decoding from the encoder disk: profile binning, blur model
+    and the acceptance limits of a decoded heading.
 
     bin_width: angular bin of the profile (rad).
     blur: defocus blur (px, Gaussian sigma) of the rendered code for the correlation.
@@ -147,7 +148,7 @@ def blurred_code(bits: np.ndarray, zero: float, angles: np.ndarray,
 
 
 @lru_cache(maxsize=8)
-def ring_geometry(model: ScannerModel, settings: EncoderSettings) -> RingGeometry:
+def ring_geometry(model: ScannerModel, settings: EncoderConfig) -> RingGeometry:
     """Pixels of the code ring, their angular bins, and the coarse templates (cached)."""
     cam, enc = model.camera, model.encoder
     u, v = np.meshgrid(np.arange(cam.width, dtype=np.float64),
@@ -211,8 +212,8 @@ def _angle_per_pixel(angle: np.ndarray) -> np.ndarray:
 
 
 def laser_line_range(model: ScannerModel) -> tuple[int, int]:
-    """Image lines (columns u) free of the encoder disk, as `LaserSettings.line_range`."""
-    first, last = ring_geometry(model, EncoderSettings()).disk_lines
+    """Image lines (columns u) free of the encoder disk, as `LaserConfig.line_range`."""
+    first, last = ring_geometry(model, EncoderConfig()).disk_lines
     width = model.camera.width
     if last >= width - 1:
         return 0, first
@@ -369,13 +370,13 @@ def _fail(reason: str, score: float = math.nan, margin: float = math.nan,
 
 
 def decode_heading(image_bgr: np.ndarray, model: ScannerModel, previous: float | None = None,
-                   settings: EncoderSettings | None = None) -> HeadingResult:
+                   settings: EncoderConfig | None = None) -> HeadingResult:
     """The head's heading from the encoder disk in a frame (see the module docstring).
 
     previous: the last good heading (rad); needed for a rotationally symmetric code,
     ignored for an absolute one.
     """
-    s = settings or EncoderSettings()
+    s = settings or EncoderConfig()
     cam = model.camera
     check_frame(image_bgr, (cam.width, cam.height))
     geo = ring_geometry(model, s)

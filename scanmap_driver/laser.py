@@ -28,7 +28,7 @@ mean red and the median of the lines' red maxima (the laser's level).
 
 Lines across the stripe are image columns for the scanner (camera on its side: one line
 per column u, the peak is the row v) or rows (`axis="rows"`, e.g. a turntable scanner);
-the kernels (`laser_kernels`) stream along the positions and vectorise across the lines,
+the kernels (`_laser_kernels`) stream along the positions and vectorise across the lines,
 and rows are transposed once, in the evidence pass.
 
 Default estimator, by measurement (benchmarks/bench_laser.py; sigma 1.5 px stripes): the
@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import laser_kernels as lk
+from . import _laser_kernels as lk
 from .errors import ScanError
 
 
@@ -71,8 +71,9 @@ AXES = ("columns", "rows")
 
 
 @dataclass(frozen=True)
-class LaserSettings:
-    """How to find the stripe.
+class LaserConfig:
+    """Configures laser stripe extraction: how evidence, ridge, threshold and subpixel fit
+    find one peak per image line across the stripe.
 
     method: "dark" (paper eq. 1) or "bright" (red excess with ridge test).
     threshold: minimum ridge response (evidence units, 0-255) or "auto".
@@ -114,24 +115,24 @@ class LaserSettings:
         for name, allowed in (("method", METHODS), ("estimator", ESTIMATORS),
                               ("fit_channel", FIT_CHANNELS), ("axis", AXES)):
             if getattr(self, name) not in allowed:
-                raise ScanError(f"LaserSettings.{name}: expected one of {allowed}, "
+                raise ScanError(f"LaserConfig.{name}: expected one of {allowed}, "
                                 f"got {getattr(self, name)!r}")
         for name in ("threshold", "colour_threshold"):
             value = getattr(self, name)
             if value != "auto" and not (isinstance(value, (int, float)) and 0 <= value <= 255):
-                raise ScanError(f"LaserSettings.{name}: expected 'auto' or a level in "
+                raise ScanError(f"LaserConfig.{name}: expected 'auto' or a level in "
                                 f"0..255, got {value!r}")
         if not 1.0 <= self.stripe_width <= 10.0:
-            raise ScanError(f"LaserSettings.stripe_width: expected 1..10 px, got "
+            raise ScanError(f"LaserConfig.stripe_width: expected 1..10 px, got "
                             f"{self.stripe_width}")
         if not (isinstance(self.support, int) and self.support >= 0):
-            raise ScanError(f"LaserSettings.support: expected an integer >= 0, got "
+            raise ScanError(f"LaserConfig.support: expected an integer >= 0, got "
                             f"{self.support!r}")
         if not 1 <= self.saturation <= 255:
-            raise ScanError(f"LaserSettings.saturation: expected 1..255, got {self.saturation}")
+            raise ScanError(f"LaserConfig.saturation: expected 1..255, got {self.saturation}")
         if self.line_range is not None and not (
                 len(self.line_range) == 2 and 0 <= self.line_range[0] < self.line_range[1]):
-            raise ScanError(f"LaserSettings.line_range: expected (start, stop) with "
+            raise ScanError(f"LaserConfig.line_range: expected (start, stop) with "
                             f"0 <= start < stop, got {self.line_range}")
 
     @property
@@ -198,9 +199,9 @@ def check_frame(image: np.ndarray, image_size: tuple[int, int] | None = None,
                         f"height), got {image.shape[1]}x{image.shape[0]}")
 
 
-def extract_stripe(image_bgr: np.ndarray, settings: LaserSettings | None = None) -> StripeResult:
+def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -> StripeResult:
     """The laser stripe's subpixel peak on every image line across it (see module doc)."""
-    s = settings or LaserSettings()
+    s = settings or LaserConfig()
     check_frame(image_bgr, s.image_size)
     image = np.ascontiguousarray(image_bgr)
     height, width = image.shape[:2]

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from scanmap_driver import encoder
 from scanmap_driver.encoder import (
-    EncoderSettings,
+    EncoderConfig,
     code_period,
     coverage,
     decode_heading,
@@ -24,7 +24,7 @@ from scanmap_driver.encoder import (
 from scanmap_driver.encoder_disk import EncoderDisk
 from scanmap_driver.errors import ScanError
 from scanmap_driver.scanner_model import CameraIntrinsics, HeadMount, reference_scanner
-from tests.scanmap_driver.synthetic_frames import disk_frame, project, srgb
+from scanmap_driver.sim.synthetic_frames import disk_frame, project, srgb
 
 MODEL = reference_scanner()
 
@@ -65,7 +65,7 @@ def test_renderer_projection_matches_opencv():
 def test_ring_profile_matches_bincount():
     rng = np.random.default_rng(1)
     image = rng.integers(0, 256, (480, 640, 3), dtype=np.uint8)
-    geo = ring_geometry(MODEL, EncoderSettings())
+    geo = ring_geometry(MODEL, EncoderConfig())
     grey = image.reshape(-1, 3).astype(float).mean(axis=1)[geo.pixels]
     expected = np.bincount(geo.bins, weights=grey) / geo.bin_count
     got = encoder.ring_profile(image.reshape(-1), geo.pixels, geo.bins, geo.bin_count, False)
@@ -93,7 +93,7 @@ def test_blurred_code_matches_numerical_convolution(sigma_deg, shift):
 def test_code_levels_and_edge_headings_on_a_rendered_profile():
     """A profile of the blurred code at heading theta: every edge in view gives theta back
     from a wrong start, and the levels away from the edges are the printed ones."""
-    geo = ring_geometry(MODEL, EncoderSettings())
+    geo = ring_geometry(MODEL, EncoderConfig())
     disk = MODEL.encoder
     theta = 0.7
     sigma = np.full(geo.bin_angle.size, math.radians(1.0))
@@ -252,7 +252,7 @@ def test_disk_out_of_view_is_a_clear_error():
 def test_laser_line_range_avoids_the_ring():
     start, stop = laser_line_range(MODEL)
     assert (start, stop) == (0, 560)
-    geo = ring_geometry(MODEL, EncoderSettings())
+    geo = ring_geometry(MODEL, EncoderConfig())
     assert np.all(geo.pixels % 640 >= stop)
 
 

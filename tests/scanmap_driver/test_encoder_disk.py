@@ -26,7 +26,7 @@ from scanmap_driver.encoder_disk import (
 )
 from scanmap_driver.errors import CalibrationError
 from scanmap_driver.scanner_model import reference_scanner
-from tests.scanmap_driver.synthetic_frames import disk_frame
+from scanmap_driver.sim.synthetic_frames import disk_frame
 
 
 @pytest.mark.parametrize("order", [1, 2, 3, 4, 5, 6])

@@ -12,11 +12,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import curve_fit
 
-from scanmap_driver import laser, laser_kernels
+from scanmap_driver import _laser_kernels as lk
+from scanmap_driver import laser
 from scanmap_driver.errors import ScanError
-from scanmap_driver.laser import Flag, LaserSettings, extract_stripe
+from scanmap_driver.laser import Flag, LaserConfig, extract_stripe
+from scanmap_driver.sim.synthetic_frames import stripe_frame
 from tests.conftest import real_data
-from tests.scanmap_driver.synthetic_frames import stripe_frame
 
 # ---------------------------------------------------------------- numpy references
 
@@ -26,7 +27,7 @@ def evidence_reference(image: np.ndarray, dark: bool, t: int, sat: int) -> np.nd
     if dark:
         return np.where(((r > t) & (g < t) & (b < t)) | (r >= sat), r, 0).astype(np.int16)
     other = np.maximum(g, b)
-    return r - np.where(r >= sat, np.minimum(other, laser_kernels.WHITE_CAP), other)
+    return r - np.where(r >= sat, np.minimum(other, lk.WHITE_CAP), other)
 
 
 def ridge_reference(e: np.ndarray, pad: int, m: int, offset: int, side: int) -> np.ndarray:
@@ -101,7 +102,7 @@ def test_evidence_kernel_matches_numpy(dark, by_rows):
     if by_rows:
         ref = ref.T
     out = np.zeros((ref.shape[0] + 2 * pad, ref.shape[1]), np.int16)
-    laser_kernels.evidence_kernel(image.reshape(-1), 24, 31, by_rows, dark, np.uint8(120),
+    lk.evidence_kernel(image.reshape(-1), 24, 31, by_rows, dark, np.uint8(120),
                           np.uint8(240), pad, out)
     assert np.array_equal(out[pad:-pad], ref)
     assert not out[:pad].any() and not out[-pad:].any()
@@ -120,7 +121,7 @@ def test_ridge_kernel_matches_numpy(windows):
     best = np.empty(n_lines, np.int32)
     pos = np.empty(n_lines, np.int32)
     count = np.empty(n_lines, np.int32)
-    laser_kernels.ridge_kernel(e, n_pos, pad, m, offset, side, hi, hi // 2, best, pos, count)
+    lk.ridge_kernel(e, n_pos, pad, m, offset, side, hi, hi // 2, best, pos, count)
     assert np.array_equal(best, ref.max(0))
     assert np.array_equal(pos, ref.argmax(0))
     assert np.array_equal(count, runs_reference(ref, hi, hi // 2))
@@ -140,7 +141,7 @@ def test_red_statistics_and_colour_threshold_match_numpy(by_rows):
     rng = np.random.default_rng(6)
     image = rng.integers(0, 256, (30, 41, 3), dtype=np.uint8)
     red = image[:, :, 2].astype(float)
-    mean, level = laser_kernels.red_statistics(image.reshape(-1), 30, 41, by_rows)
+    mean, level = lk.red_statistics(image.reshape(-1), 30, 41, by_rows)
     assert mean == pytest.approx(red.mean())
     assert level == np.median(red.max(axis=1 if by_rows else 0))
     t = laser.automatic_colour_threshold(image.reshape(-1), 30, 41, by_rows)
@@ -150,7 +151,7 @@ def test_red_statistics_and_colour_threshold_match_numpy(by_rows):
 def test_drop_isolated_example():
     peak = np.array([10.0, 11.0, 12.0, np.nan, 50.0, 13.0, 14.0, 15.0, 16.0])
     flags = np.zeros(9, np.uint8)
-    laser_kernels.drop_isolated(peak, flags, 0, 9, 2, 3.0)
+    lk.drop_isolated(peak, flags, 0, 9, 2, 3.0)
     assert np.isnan(peak[4]) and flags[4] == Flag.ISOLATED  # 50: no neighbour
     assert np.all(np.isfinite(np.delete(peak, [3, 4]))) and not np.delete(flags, 4).any()
 
@@ -165,7 +166,7 @@ def test_drop_isolated_matches_numpy(seed, support):
     expected = isolated_reference(peak, support, 4.0)
     flags = np.zeros(40, np.uint8)
     out = peak.copy()
-    laser_kernels.drop_isolated(out, flags, 0, 40, support, 4.0)
+    lk.drop_isolated(out, flags, 0, 40, support, 4.0)
     assert np.array_equal(np.isfinite(out), expected)
     assert np.array_equal(flags == Flag.ISOLATED, np.isfinite(peak) & ~expected)
 
@@ -177,14 +178,14 @@ def test_estimators_on_sampled_gaussian(offset, sigma):
     x = np.arange(11.0)
     g = gaussian(x, 100.0, 5 + offset, sigma)
     clipped = np.zeros(11, bool)
-    assert laser_kernels.offset_gauss3(g, 11, 5) == pytest.approx(offset, abs=1e-9)
-    assert laser_kernels.offset_gauss3(g, 11, 5) == pytest.approx(gauss3_reference(g, 5), abs=1e-12)
-    assert laser_kernels.offset_blais_rioux(g, 11, 5) == pytest.approx(
+    assert lk.offset_gauss3(g, 11, 5) == pytest.approx(offset, abs=1e-9)
+    assert lk.offset_gauss3(g, 11, 5) == pytest.approx(gauss3_reference(g, 5), abs=1e-12)
+    assert lk.offset_blais_rioux(g, 11, 5) == pytest.approx(
         blais_rioux_reference(g, 5), abs=1e-12)
-    assert laser_kernels.offset_blais_rioux(g, 11, 5) == pytest.approx(offset, abs=0.06)
-    lsq = laser_kernels.peak_offset(g, 11, 5, clipped, laser_kernels.EST_LSQ, 5, WORK)
+    assert lk.offset_blais_rioux(g, 11, 5) == pytest.approx(offset, abs=0.06)
+    lsq = lk.peak_offset(g, 11, 5, clipped, lk.EST_LSQ, 5, WORK)
     assert lsq == pytest.approx(offset, abs=2e-3)  # stops at steps below 1e-3 px
-    com = laser_kernels.offset_com(g, 11, 5, 5)
+    com = lk.offset_com(g, 11, 5, 5)
     assert com == pytest.approx(com_reference(g, 5, 5), abs=1e-12)
 
 
@@ -198,12 +199,12 @@ def test_lsq_on_clipped_noisy_peak_agrees_with_scipy(offset, level, seed):
     top = level * 100.0
     clipped = g >= top
     g = np.minimum(g, top)
-    ours = laser_kernels.peak_offset(g, 13, 6, clipped, laser_kernels.EST_LSQ, 6, WORK)
+    ours = lk.peak_offset(g, 13, 6, clipped, lk.EST_LSQ, 6, WORK)
     keep = ~clipped
     popt, _ = curve_fit(gaussian, x[keep], g[keep], p0=(100.0, 6 + offset, 1.8))
     assert ours == pytest.approx(popt[1] - 6, abs=0.02)  # ill-conditioned when clipped
     if clipped.sum() >= 2:  # the others use the half-height edges of the flat top
-        edges = laser_kernels.peak_offset(g, 13, 6, clipped, laser_kernels.EST_BLAIS_RIOUX, 6, WORK)
+        edges = lk.peak_offset(g, 13, 6, clipped, lk.EST_BLAIS_RIOUX, 6, WORK)
         assert edges == pytest.approx(offset, abs=0.25)
 
 
@@ -213,8 +214,8 @@ def test_estimators_are_shift_equivariant():
     g = gaussian(x, 80.0, 9.3, 1.5) + rng.normal(0, 2, 20)
     clipped = np.zeros(20, bool)
     for est in range(5):
-        a = laser_kernels.peak_offset(g, 20, 9, clipped, est, 5, WORK) + 9
-        b = laser_kernels.peak_offset(g[1:], 19, 8, clipped, est, 5, WORK) + 8 + 1
+        a = lk.peak_offset(g, 20, 9, clipped, est, 5, WORK) + 9
+        b = lk.peak_offset(g[1:], 19, 8, clipped, est, 5, WORK) + 8 + 1
         assert a == pytest.approx(b, abs=1e-9)
 
 
@@ -232,7 +233,7 @@ def rms_error(result, truth):
 def test_subpixel_accuracy_dark_sigma_1_5(estimator, bound):
     """sigma 1.5 px, amplitude 180 over noise 2 (SNR 90): RMS error against the exact centre."""
     image, truth = stripe_frame(np.random.default_rng(11))
-    found, rms, _ = rms_error(extract_stripe(image, LaserSettings(estimator=estimator)), truth)
+    found, rms, _ = rms_error(extract_stripe(image, LaserConfig(estimator=estimator)), truth)
     assert found == 1.0
     assert rms < bound
 
@@ -260,7 +261,7 @@ def test_white_saturated_core_is_found_flagged_and_centred(method):
     image, truth = stripe_frame(np.random.default_rng(13), amplitude=2000.0,
                                 colour=np.array([0.15, 0.25, 1.0]))  # white core, red flanks
     assert (image[np.rint(truth).astype(int), np.arange(640)] >= 250).all()
-    result = extract_stripe(image, LaserSettings(method=method))
+    result = extract_stripe(image, LaserConfig(method=method))
     assert np.all(result.flags & Flag.SATURATED)
     found, rms, _ = rms_error(result, truth)
     assert found > 0.99 and rms < 0.1
@@ -299,8 +300,8 @@ def test_second_weaker_stripe_flags_multiple_and_keeps_best():
 
 def test_dark_method_with_automatic_and_manual_threshold():
     image, truth = stripe_frame(np.random.default_rng(16), level=30.0)
-    auto = extract_stripe(image, LaserSettings(method="dark"))
-    manual = extract_stripe(image, LaserSettings(method="dark", colour_threshold=150))
+    auto = extract_stripe(image, LaserConfig(method="dark"))
+    manual = extract_stripe(image, LaserConfig(method="dark", colour_threshold=150))
     assert 60 < auto.colour_threshold < 180
     for result in (auto, manual):
         found, rms, _ = rms_error(result, truth)
@@ -320,14 +321,14 @@ def test_rows_axis_equals_transposed_columns():
     image, _ = stripe_frame(np.random.default_rng(18), height=200, width=160)
     cols = extract_stripe(image)
     rows = extract_stripe(np.ascontiguousarray(image.transpose(1, 0, 2)),
-                          LaserSettings(axis="rows"))
+                          LaserConfig(axis="rows"))
     assert np.array_equal(cols.peak, rows.peak, equal_nan=True)
     assert np.array_equal(cols.flags, rows.flags)
 
 
 def test_line_range_skips_lines():
     image, truth = stripe_frame(np.random.default_rng(19))
-    result = extract_stripe(image, LaserSettings(line_range=(0, 560)))
+    result = extract_stripe(image, LaserConfig(line_range=(0, 560)))
     assert np.all(result.flags[560:] == Flag.SKIPPED) and np.all(np.isnan(result.peak[560:]))
     assert np.all(np.abs(result.peak[:560] - truth[:560]) < 0.2)
 
@@ -354,7 +355,7 @@ def test_no_laser_in_the_frame(scene, methods):
               "red boxes": dict(level=120.0, red_objects=8)}[scene]
     image, _ = stripe_frame(np.random.default_rng(21), amplitude=0.0, **kwargs)
     for method in methods:
-        result = extract_stripe(image, LaserSettings(method=method))
+        result = extract_stripe(image, LaserConfig(method=method))
         assert np.isfinite(result.peak).mean() < 0.01
 
 
@@ -364,7 +365,7 @@ def test_uniform_frames_give_no_stripe(bgr):
     image = np.empty((480, 640, 3), np.uint8)
     image[:] = bgr
     for method in ("bright", "dark"):
-        result = extract_stripe(image, LaserSettings(method=method))
+        result = extract_stripe(image, LaserConfig(method=method))
         assert np.all(np.isnan(result.peak))
         assert np.all(result.flags & Flag.NONE_FOUND)
 
@@ -389,15 +390,15 @@ def test_bad_frames_raise_scan_error(image, message):
 
 def test_wrong_size_frame_raises_when_size_is_set():
     with pytest.raises(ScanError, match="expected 640x480"):
-        extract_stripe(np.zeros((640, 480, 3), np.uint8), LaserSettings(image_size=(640, 480)))
+        extract_stripe(np.zeros((640, 480, 3), np.uint8), LaserConfig(image_size=(640, 480)))
 
 
 @pytest.mark.parametrize("field", [dict(method="sunny"), dict(estimator="magic"),
                                    dict(threshold=-3), dict(stripe_width=30.0),
                                    dict(line_range=(5, 2)), dict(support=-1)])
 def test_bad_settings_raise_scan_error(field):
-    with pytest.raises(ScanError, match="LaserSettings"):
-        LaserSettings(**field)
+    with pytest.raises(ScanError, match="LaserConfig"):
+        LaserConfig(**field)
 
 
 # ---------------------------------------------------------------- real images (read in place)
@@ -425,7 +426,7 @@ def test_real_laser_pair_single_frame_agrees_with_difference_and_ignores_cube():
     folder = real_data(f"{REAL}/3.1_laser_segmentation")
     on = cv2.imread(str(folder / "laser.png"))
     off = cv2.imread(str(folder / "laser_background.png"))
-    result = extract_stripe(on, LaserSettings(axis="rows", stripe_width=8.0))
+    result = extract_stripe(on, LaserConfig(axis="rows", stripe_width=8.0))
     stripe_rows, agree = difference_agreement(on, off, result)
     assert stripe_rows.sum() > 1000
     assert agree[stripe_rows].mean() > 0.98  # measured 0.992
@@ -449,7 +450,7 @@ def test_real_two_laser_pattern_pairs(suffix, method):
     folder = real_data(f"{REAL}/3.2_laser_in_pattern")
     on = cv2.imread(str(folder / f"laser-0-255-255-8{suffix}.png"))
     off = cv2.imread(str(folder / f"laser-background-0-255-255-8{suffix}.png"))
-    result = extract_stripe(on, LaserSettings(method=method, axis="rows", stripe_width=8.0))
+    result = extract_stripe(on, LaserConfig(method=method, axis="rows", stripe_width=8.0))
     stripe_rows, agree = difference_agreement(on, off, result)
     assert agree[stripe_rows].mean() > 0.88  # measured 0.92-0.96
     multiple = result.flags[stripe_rows] & Flag.MULTIPLE > 0
@@ -460,9 +461,9 @@ def test_real_frames_are_not_rotated_in_the_hot_path():
     """Sanity for the axis option: the same real frame transposed gives the same peaks."""
     folder = real_data(f"{REAL}/3.1_laser_segmentation")
     on = cv2.imread(str(folder / "laser.png"))[::2, ::2].copy()
-    rows = extract_stripe(on, LaserSettings(axis="rows", stripe_width=4.0))
+    rows = extract_stripe(on, LaserConfig(axis="rows", stripe_width=4.0))
     cols = extract_stripe(np.ascontiguousarray(on.transpose(1, 0, 2)),
-                          LaserSettings(stripe_width=4.0))
+                          LaserConfig(stripe_width=4.0))
     assert np.array_equal(rows.peak, cols.peak, equal_nan=True)
     assert math.isclose(rows.threshold, cols.threshold)
 
@@ -477,7 +478,7 @@ def test_simulator_frames():
     scene = builtin_scene("office")
     plan = plan_scans(scene, model, seed=1, count=1)[0]
     renderer = Renderer(scene, model)
-    settings = LaserSettings(line_range=laser_line_range(model))
+    settings = LaserConfig(line_range=laser_line_range(model))
     rng = np.random.default_rng(12)
     errors = []
     for frame in (5, len(plan.frame_times) // 2):

@@ -20,9 +20,9 @@ import cv2
 import numpy as np
 from scipy.special import ndtr
 
-from scanmap_driver.scanner_model import ScannerModel
-from scanmap_driver.sim.laser_stripe import project
-from scanmap_driver.transforms import invert_pose
+from ..scanner_model import ScannerModel
+from ..transforms import invert_pose
+from .laser_stripe import project
 
 LASER_BGR = np.array([0.05, 0.12, 1.0])  # red laser with a little crosstalk into G and B
 
