@@ -1,21 +1,34 @@
 """The Arduino sketch and the simulated firmware against the same protocol conformance
 suite (docs/motor_protocol.md), over a pseudo-terminal.
 
-The sketch firmware/scanmap_motor/scanmap_motor.ino is compiled for this machine with a
-small stand-in for the Arduino core (tests/scanmap_driver/arduino_shim): Serial is the
-pty, and every pin change is logged, so the tests also check what the H-bridge would see.
+The sketch firmware/scanmap_motor/scanmap_motor.ino runs in two builds, both driven by
+the same tests:
+
+* host: compiled for this machine with g++ and a small stand-in for the Arduino core
+  (tests/scanmap_driver/arduino_shim), the fast one;
+* avr: built for the board it targets (ATmega328P at 16 MHz, avr-gcc and the Arduino AVR
+  core, firmware/build_avr.py) and run in simavr by firmware/simavr/uart_pty_runner.c,
+  which bridges UART0 to the pty and keeps simulated time in step with the wall clock.
+
+Each build logs every change of the motor pins on stderr as "t=<ms> <pin>=<value>", so
+the tests also check what the H-bridge would see. A missing toolchain fails the tests
+(scripts/setup.sh installs it); it never skips them.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
+import select
 import shutil
 import subprocess
 import threading
 import time
 import tty
+from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -29,42 +42,79 @@ ROOT = Path(__file__).resolve().parents[2]
 SKETCH = ROOT / "firmware" / "scanmap_motor" / "scanmap_motor.ino"
 SHIM = Path(__file__).resolve().parent / "arduino_shim"
 PWM, IN1, IN2 = "A9", "D7", "D8"
+STEP, DIR, ENABLE = "D3", "D4", "D5"
+Build = Callable[[str], list[str]]  # drive ("dc" or "step") -> the command that runs it
 
 
-@pytest.fixture(scope="module")
-def build(tmp_path_factory):
-    """Compile the sketch for this machine: DRIVE -> binary path."""
+def load_build_avr() -> ModuleType:
+    """firmware/build_avr.py (a script, not a package) as a module."""
+    spec = importlib.util.spec_from_file_location("build_avr", ROOT / "firmware" / "build_avr.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="session")
+def host_build(tmp_path_factory) -> Build:
+    """The sketch compiled for this machine (once per session and drive)."""
     compiler = shutil.which("g++")
-    if compiler is None:
-        pytest.skip("no g++ to compile the Arduino sketch for this machine")
-    out = tmp_path_factory.mktemp("firmware")
+    assert compiler, "no g++ to compile the Arduino sketch for this machine: scripts/setup.sh"
+    out = tmp_path_factory.mktemp("firmware_host")
 
-    def compile_sketch(drive: int) -> Path:
+    def command(drive: str) -> list[str]:
         binary = out / f"scanmap_motor_{drive}"
         if not binary.exists():
             subprocess.run([compiler, "-std=c++11", "-Wall", "-Wextra", "-Werror", "-O1",
-                            f"-DDRIVE={drive}", f"-I{SHIM}", "-x", "c++", str(SKETCH),
-                            "-x", "none", str(SHIM / "host_main.cpp"), "-o", str(binary)],
-                           check=True, capture_output=True, timeout=120)
-        return binary
+                            f"-DDRIVE={load_build_avr().DRIVES[drive]}", f"-I{SHIM}",
+                            "-x", "c++", str(SKETCH), "-x", "none", str(SHIM / "host_main.cpp"),
+                            "-o", str(binary)], check=True, capture_output=True, timeout=120)
+        return [str(binary)]
 
-    return compile_sketch
+    return command
+
+
+@pytest.fixture(scope="session")
+def avr_build(tmp_path_factory) -> Build:
+    """The sketch built for an ATmega328P, run in simavr (built once per session)."""
+    build_avr = load_build_avr()
+    out = tmp_path_factory.mktemp("firmware_avr")
+    runner = build_avr.build_runner(out)
+    return lambda drive: [str(runner), str(build_avr.build_elf(out, drive))]
+
+
+@pytest.fixture(params=["host", "avr"])
+def build(request) -> Build:
+    """Either build of the sketch."""
+    return request.getfixturevalue(f"{request.param}_build")
 
 
 class SketchDevice:
-    """The compiled sketch on a pty: `port` for the host, `pins()` for its outputs."""
+    """A build of the sketch on a pty: `port` for the host, `pins()` for its outputs."""
 
-    def __init__(self, binary: Path) -> None:
+    def __init__(self, command: list[str]) -> None:
         master, slave = os.openpty()
         tty.setraw(slave)
         self.port = os.ttyname(slave)
-        os.close(slave)
-        self.process = subprocess.Popen([str(binary)], stdin=master, stdout=master,
+        self.process = subprocess.Popen(command, stdin=master, stdout=master,
                                         stderr=subprocess.PIPE, text=True)
         os.close(master)
         self._log: list[tuple[int, str, int]] = []
         self._reader = threading.Thread(target=self._read_pins, daemon=True)
         self._reader.start()
+        try:
+            self._await_boot(slave)
+        finally:
+            os.close(slave)
+
+    def _await_boot(self, slave: int, timeout: float = 10.0) -> None:
+        """Read the BOOT line, so that a host opening the port never starts mid-line (the
+        simulated ATmega sends it at 115200 baud, over a few ms)."""
+        received, deadline = b"", time.monotonic() + timeout
+        while not re.search(rb"! BOOT [^\n]*\n", received):
+            left = deadline - time.monotonic()
+            assert left > 0 and self.process.poll() is None, f"no BOOT line: {received!r}"
+            if select.select([slave], [], [], left)[0]:
+                received += os.read(slave, 256)
 
     def _read_pins(self) -> None:
         for line in self.process.stderr:
@@ -76,6 +126,10 @@ class SketchDevice:
         """The present value of every pin written so far."""
         return {pin: value for _, pin, value in list(self._log)}
 
+    def changes(self, pin: str) -> list[tuple[int, int]]:
+        """(time in ms, value) of every change of `pin` so far."""
+        return [(t, value) for t, name, value in list(self._log) if name == pin]
+
     def close(self) -> None:
         self.process.terminate()
         try:
@@ -85,13 +139,14 @@ class SketchDevice:
             self.process.wait(timeout=5.0)
 
 
-@pytest.fixture(params=["simulated", "sketch"])
-def device(request, build):
-    """A controller of either kind; `.port` is the path a host opens."""
-    if request.param == "sketch":
-        dev = SketchDevice(build(1))
-    else:
+@pytest.fixture(params=["simulated", "host", "avr"])
+def device(request):
+    """A controller: the simulated firmware or a build of the sketch; `.port` is the path
+    a host opens."""
+    if request.param == "simulated":
         dev = SimulatedFirmware(reset_on_open=False)
+    else:
+        dev = SketchDevice(request.getfixturevalue(f"{request.param}_build")("dc"))
     yield dev
     dev.close()
 
@@ -192,7 +247,7 @@ def test_host_client_drives_either_controller(device):
 
 @pytest.fixture
 def sketch(build):
-    dev = SketchDevice(build(1))
+    dev = SketchDevice(build("dc"))
     yield dev
     dev.close()
 
@@ -218,7 +273,7 @@ def test_sketch_ramp_takes_half_a_second_to_full_speed(sketch):
     with MotorController.connect(sketch.port) as motor:
         motor.run("CCW", 1000)
         assert wait_until(lambda: sketch.pins().get(PWM) == 255, 2.0)
-    changes = [(t, v) for t, pin, v in sketch._log if pin == PWM and v > 0]
+    changes = [(t, v) for t, v in sketch.changes(PWM) if v > 0]
     rise = changes[-1][0] - changes[0][0]
     assert 0.4 * 1000 <= rise <= 0.7 * 1000
 
@@ -233,15 +288,15 @@ def test_sketch_brakes_by_itself_when_the_host_vanishes(sketch):
 
 
 def test_step_dir_build_enables_the_driver_only_while_turning(build):
-    dev = SketchDevice(build(2))
+    dev = SketchDevice(build("step"))
     try:
         with MotorController.connect(dev.port) as motor:
             assert motor.info.drive == "step"
-            assert wait_until(lambda: dev.pins().get("D5") == 1)  # disabled at rest
+            assert wait_until(lambda: dev.pins().get(ENABLE) == 1)  # disabled at rest
             motor.run("CW", 500)
-            assert wait_until(lambda: dev.pins().get("D5") == 0 and dev.pins().get("D4") == 0)
-            assert wait_until(lambda: "D3" in dev.pins())  # step pulses
+            assert wait_until(lambda: dev.pins().get(ENABLE) == 0 and dev.pins().get(DIR) == 0)
+            assert wait_until(lambda: sum(v == 1 for _, v in dev.changes(STEP)) >= 10)  # pulses
             motor.stop()
-            assert wait_until(lambda: dev.pins().get("D5") == 1)
+            assert wait_until(lambda: dev.pins().get(ENABLE) == 1)
     finally:
         dev.close()
