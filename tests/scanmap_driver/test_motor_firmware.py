@@ -31,6 +31,7 @@ from pathlib import Path
 from types import ModuleType
 
 import pytest
+import serial
 
 from scanmap_driver.motor import MotorController
 from scanmap_driver.sim.firmware import SimulatedFirmware
@@ -242,6 +243,25 @@ def test_host_client_drives_either_controller(device):
         motor.brake()
         assert motor.status().state == "BRAKE"
 
+
+def test_host_client_recovers_from_line_noise(device):
+    """Noise before the host's first HELLO damages that line; the controller answers it
+    without a tag, the client drops that answer, retries, and the session works."""
+    with serial.Serial(device.port, 115200) as noisy:
+        noisy.write(b"\x00\xfe\x13#2 RU")  # no LF: glued to the client's first HELLO
+    with MotorController.connect(device.port) as motor:
+        assert motor.info.protocol == 1
+        motor.run("CCW", 300)
+        assert motor.status().target == 300
+
+
+def test_uptime_keeps_pace_with_the_wall_clock(terminal):
+    """`t` is the uptime in ms (protocol): the simulated ATmega must run in real time, or
+    the watchdog would not mean what the host's heartbeat assumes."""
+    first, since = int(terminal.ask("PING").split("t=")[1]), time.monotonic()
+    time.sleep(0.5)
+    second, wall = int(terminal.ask("PING").split("t=")[1]), time.monotonic() - since
+    assert abs((second - first) - 1000 * wall) <= 0.1 * 1000 * wall + 20
 
 # -- what the sketch puts on its pins ---------------------------------------------------------
 
