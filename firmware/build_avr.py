@@ -4,7 +4,7 @@ Arduino IDE, and the simavr runner that runs it with UART0 on a pseudo-terminal.
 The ELF is built the way the Arduino IDE builds it (flags from the core's platform.txt,
 without LTO): the sketch becomes a .cpp with `#include <Arduino.h>` prepended, and is linked
 with the Arduino AVR core's .c/.cpp/.S files. Needs the Debian packages gcc-avr, avr-libc
-and arduino-core-avr; the runner needs a C compiler, simavr's libsimavr-dev and libelf-dev
+and arduino-core-avr; the runner needs a C compiler (gcc) and simavr's libsimavr-dev
 (scripts/setup.sh installs them all).
 
     python firmware/build_avr.py [--drive dc|step] [--out DIR]   # prints the ELF's path
@@ -114,13 +114,13 @@ def build_runner(out: Path, source: Path = RUNNER_SOURCE) -> Path:
     """Compile the simavr UART-to-pty runner (firmware/simavr) with the system C compiler."""
     compiler = _require("cc", "gcc")
     if not Path("/usr/include/simavr/sim_avr.h").exists():
-        raise ToolchainError("no simavr headers: install the Debian packages libsimavr-dev "
-                             "and libelf-dev (scripts/setup.sh does)")
+        raise ToolchainError("no simavr headers: install the Debian package libsimavr-dev "
+                             "(scripts/setup.sh does)")
     out.mkdir(parents=True, exist_ok=True)
     binary = out / source.stem
     if not binary.exists():
         _run([compiler, "-O2", "-Wall", "-Wextra", "-Werror", "-I/usr/include/simavr",
-              str(source), "-o", str(binary), "-lsimavr", "-lelf", "-lutil"])
+              str(source), "-o", str(binary), "-lsimavr", "-lutil"])
     return binary
 
 

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Set up scanmap on a fresh machine (idempotent; fast when nothing changed):
-#   1. the system library libusb-1.0-0 that Open3D loads,
+#   1. the system library libusb-1.0-0 that Open3D loads, and the toolchains that build
+#      and run the motor firmware in the tests (g++ for the host build; avr-gcc, avr-libc,
+#      the Arduino AVR core and simavr for the ATmega328P build),
 #   2. a virtual environment in .venv,
 #   3. the package (editable) with its dev, peers and bench extras.
-# Needs Python >= 3.11 with pip; apt for the system library (root, or sudo without a
+# Needs Python >= 3.11 with pip; apt for the system packages (root, or sudo without a
 # password; otherwise it prints the exact command to run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,6 +25,19 @@ apt_install() {
 if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then
   echo "scanmap setup: installing libusb-1.0-0 (needed by Open3D)"
   apt_install libusb-1.0-0
+fi
+
+# The motor firmware's tests (tests/scanmap_driver/test_motor_firmware.py) build the sketch
+# with g++ and for the ATmega328P (firmware/build_avr.py), and run it in simavr.
+firmware_packages=(gcc g++ gcc-avr binutils-avr avr-libc arduino-core-avr simavr libsimavr-dev)
+missing=()
+for package in "${firmware_packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "ok installed" ||
+    missing+=("$package")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "scanmap setup: installing ${missing[*]} (to build and simulate the motor firmware)"
+  apt_install "${missing[@]}"
 fi
 
 if [ ! -x .venv/bin/python ]; then
