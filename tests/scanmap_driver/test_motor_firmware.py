@@ -320,3 +320,16 @@ def test_step_dir_build_enables_the_driver_only_while_turning(build):
             assert wait_until(lambda: dev.pins().get(ENABLE) == 1)
     finally:
         dev.close()
+
+
+@pytest.mark.parametrize("drive", ["dc", "step"])
+def test_avr_build_fits_the_atmega328p(avr_build, drive):
+    """Flash: 32 KiB less the Uno's 512-byte bootloader; static RAM: at most 75 % of the
+    2 KiB (the Arduino IDE's low-memory warning), leaving the rest to the stack."""
+    elf = avr_build(drive)[1]
+    sizes = {name: int(size) for name, size, *_ in (
+        line.split() for line in subprocess.run(["avr-size", "-A", elf], check=True,
+                                                capture_output=True, text=True).stdout
+        .splitlines()[2:] if line.strip())}
+    assert sizes[".text"] + sizes[".data"] <= 32 * 1024 - 512
+    assert sizes[".data"] + sizes[".bss"] <= 0.75 * 2048
