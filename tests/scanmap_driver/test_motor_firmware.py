@@ -55,6 +55,9 @@ def load_build_avr() -> ModuleType:
     return module
 
 
+BUILD_AVR = load_build_avr()
+
+
 @pytest.fixture(scope="session")
 def host_build(tmp_path_factory) -> Build:
     """The sketch compiled for this machine (once per session and drive)."""
@@ -66,7 +69,7 @@ def host_build(tmp_path_factory) -> Build:
         binary = out / f"scanmap_motor_{drive}"
         if not binary.exists():
             subprocess.run([compiler, "-std=c++11", "-Wall", "-Wextra", "-Werror", "-O1",
-                            f"-DDRIVE={load_build_avr().DRIVES[drive]}", f"-I{SHIM}",
+                            f"-DDRIVE={BUILD_AVR.DRIVES[drive]}", f"-I{SHIM}",
                             "-x", "c++", str(SKETCH), "-x", "none", str(SHIM / "host_main.cpp"),
                             "-o", str(binary)], check=True, capture_output=True, timeout=120)
         return [str(binary)]
@@ -77,10 +80,9 @@ def host_build(tmp_path_factory) -> Build:
 @pytest.fixture(scope="session")
 def avr_build(tmp_path_factory) -> Build:
     """The sketch built for an ATmega328P, run in simavr (built once per session)."""
-    build_avr = load_build_avr()
     out = tmp_path_factory.mktemp("firmware_avr")
-    runner = build_avr.build_runner(out)
-    return lambda drive: [str(runner), str(build_avr.build_elf(out, drive))]
+    runner = BUILD_AVR.build_runner(out)
+    return lambda drive: [str(runner), str(BUILD_AVR.build_elf(out, drive))]
 
 
 @pytest.fixture(params=["host", "avr"])
@@ -159,7 +161,7 @@ def terminal(device):
     term.close()
 
 
-# -- conformance: both implementations -------------------------------------------------------
+# -- conformance: every implementation --------------------------------------------------------
 
 def tagged(body: str) -> bytes:
     return f"{body}*{xor_checksum(body)}".encode()
