@@ -34,11 +34,11 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from benchmarks.timing import first_call_time, median_time
-from scanmap.distance_field import distance_transform
-from scanmap.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, segment
-from scanmap.grid import GridConfig, HeightGrid
-from scanmap.obstacles import ObstacleMap
-from scanmap.rays import scan_rays
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.grid.rays import scan_rays
+from scanmap.navigation.distance_field import distance_transform
+from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, segment
+from scanmap.navigation.obstacles import ObstacleMap
 from scanmap_driver.scanner_model import reference_scanner
 from scanmap_driver.sim.ideal import ideal_scans
 from scanmap_driver.sim.raster import FLOOR, truth_raster

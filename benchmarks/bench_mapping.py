@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from scanmap.mapper import Mapper
-from scanmap.mapper_config import MapperConfig
-from scanmap.offline import map_to_folder
-from scanmap.scan_input import ScanSource
+from scanmap.datasets.recordings import ScanSource
+from scanmap.mapping.config import MapperConfig
+from scanmap.mapping.mapper import Mapper
+from scanmap.pipelines.offline import map_to_folder
 from scanmap_driver import reference_scanner
 from scanmap_driver.recording import INDEX_NAME
 from scanmap_driver.sim import builtin_scene

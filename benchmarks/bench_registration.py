@@ -38,7 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmarks.timing import first_call_time
-from scanmap.carmen import read_carmen
+from scanmap.datasets.carmen import read_carmen
+from scanmap.evaluation.trajectory_errors import ate_rmse, relative_errors, shared_error
 from scanmap.registration import (
     LocalMap,
     Prior,
@@ -47,7 +48,6 @@ from scanmap.registration import (
     prepare_source,
     register_scan,
 )
-from scanmap.trajectory import ate_rmse, relative_errors, shared_error
 from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, se2_to_pose
 

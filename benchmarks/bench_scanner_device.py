@@ -30,10 +30,10 @@ from scanmap_driver.motor import MotorController
 from scanmap_driver.processing import recording_scans
 from scanmap_driver.recording import Recording
 from scanmap_driver.scan import Scan
-from scanmap_driver.scanner import Scanner, ScanSettings
+from scanmap_driver.scanner import ScanConfig, Scanner
 from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.firmware import SimulatedFirmware, scene_renderer
-from scanmap_driver.sim.motor_model import MotorParameters
+from scanmap_driver.sim.motor_model import MotorModelConfig
 from scanmap_driver.sim.render import Renderer
 from scanmap_driver.sim.simulate import simulate_recording
 from scanmap_driver.sim.truth import ScanTruth, truth_path
@@ -92,7 +92,7 @@ def offline_scan(folder: Path, scene, model, seed: int) -> dict:
 
 def live_scan(scene, model, seed: int, slow: float = SLOW) -> dict:
     """One scan of the real Scanner on the simulated firmware and webcam."""
-    motor = MotorParameters(full_speed=MotorParameters().full_speed / slow)
+    motor = MotorModelConfig(full_speed=MotorModelConfig().full_speed / slow)
     truths = []
     assemblers = []
 
@@ -100,7 +100,7 @@ def live_scan(scene, model, seed: int, slow: float = SLOW) -> dict:
         assemblers.append(TimedAssembler(model))
         return assemblers[-1]
 
-    settings = ScanSettings(continuous=True, time_limit=8.0 * slow, frame_timeout=1.0 * slow,
+    settings = ScanConfig(continuous=True, time_limit=8.0 * slow, frame_timeout=1.0 * slow,
                             stall_time=1.0 * slow)
     with SimulatedFirmware(motor, start_angle=1.0, seed=seed) as firmware:
         render = scene_renderer(Renderer(scene, model), firmware, scene.scan_poses[0],

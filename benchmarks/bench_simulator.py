@@ -22,7 +22,7 @@ from benchmarks.timing import first_call_time, median_time
 from scanmap_driver import reference_scanner
 from scanmap_driver.recording import Recording
 from scanmap_driver.sim import builtin_scene, ideal_scans, plan_scans
-from scanmap_driver.sim.camera_effects import CameraSettings
+from scanmap_driver.sim.camera_effects import SimCameraConfig
 from scanmap_driver.sim.hitmap import hit_map
 from scanmap_driver.sim.laser_stripe import head_poses
 from scanmap_driver.sim.render import LIGHTING, LaserAppearance, Renderer
@@ -65,7 +65,7 @@ def _frame_rows(model, quick: bool) -> list[dict]:
                                           r.render(p, f, g))
                 cpus.append(cpu)
                 walls.append(wall)
-            still = Renderer(scene.with_ambient(0.0), model, CameraSettings(),
+            still = Renderer(scene.with_ambient(0.0), model, SimCameraConfig(),
                              LaserAppearance(speckle=0.0))
             rows.append({
                 "stage": "simulator", "method": "render one frame",

@@ -31,11 +31,8 @@ from pathlib import Path
 import numpy as np
 from sim_data import DATA, ensure_recording
 
-from scanmap import Mapper, Scan
-from scanmap.mapper_config import MapperConfig
-from scanmap.obstacles import Nearest, Status
-from scanmap.scan_input import ScanSource
-from scanmap_driver.files import write_json
+from scanmap import Mapper, MapperConfig, Nearest, QueryStatus, Scan, ScanSource
+from scanmap_driver import write_json
 
 RATE = 100.0  # Hz
 
@@ -52,14 +49,14 @@ class Limits:
 
 def speed_command(nearest: Nearest, limits: Limits) -> tuple[float, str]:
     """Forward speed (m/s) for a `nearest` answer, and why."""
-    if nearest.status in (Status.STALE, Status.FAULTED):
+    if nearest.status in (QueryStatus.STALE, QueryStatus.FAULTED):
         return 0.0, nearest.status.name.lower()
     if not np.isfinite(nearest.age):
         return 0.0, "no data"
     ramp = (nearest.distance - limits.stop) / (limits.slow - limits.stop)
     speed = limits.top * float(np.clip(ramp, 0.0, 1.0))
     reason = "clear" if ramp >= 1.0 else "slowing" if ramp > 0.0 else "obstacle"
-    if nearest.status == Status.UNKNOWN and speed > limits.creep:
+    if nearest.status == QueryStatus.UNKNOWN and speed > limits.creep:
         return limits.creep, "unknown nearby"
     return speed, reason
 

@@ -17,8 +17,7 @@ from pathlib import Path
 
 from sim_data import DATA, ensure_recording
 
-from scanmap.mapper import MapUpdate
-from scanmap.offline import map_to_folder, report_text
+from scanmap import MapUpdate, map_to_folder, report_text
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,14 +30,22 @@ import numpy as np
 from scipy import ndimage
 from sim_data import DATA, ensure_recording
 
-from scanmap import Mapper
-from scanmap.costmap import INSCRIBED, inflate, occupancy_grid
-from scanmap.distance_field import distance_transform
-from scanmap.floor import FREE, OBSTACLE, UNKNOWN, Segmentation
-from scanmap.map_image import occupancy_image, write_png
-from scanmap.mapper_config import MapperConfig
-from scanmap.scan_input import ScanSource
-from scanmap_driver.files import write_json
+from scanmap import (
+    FREE,
+    INSCRIBED,
+    OBSTACLE,
+    UNKNOWN,
+    Mapper,
+    MapperConfig,
+    ScanSource,
+    Segmentation,
+    distance_transform,
+    inflate,
+    occupancy_grid,
+    occupancy_image,
+    write_png,
+)
+from scanmap_driver import write_json
 
 STEPS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
 

@@ -11,10 +11,8 @@ import shutil
 import time
 from pathlib import Path
 
-from scanmap_driver import reference_scanner
-from scanmap_driver.recording import INDEX_NAME, Recording
-from scanmap_driver.sim import builtin_scene
-from scanmap_driver.sim.simulate import simulate_recording
+from scanmap_driver import INDEX_NAME, Recording, reference_scanner
+from scanmap_driver.sim import builtin_scene, simulate_recording
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

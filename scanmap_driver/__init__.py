@@ -15,6 +15,8 @@ from .errors import (
     ScanmapError,
     SceneError,
 )
+from .files import write_json
+from .recording import INDEX_NAME, Recording
 from .scan import Scan
 from .scanner_model import ScannerModel, reference_scanner
 from .triangulation import Reason, Triangulation, triangulate
@@ -22,10 +24,12 @@ from .triangulation import Reason, Triangulation, triangulate
 __version__ = "0.1.0"
 
 __all__ = [
+    "INDEX_NAME",
     "CalibrationError",
     "DeviceError",
     "MapError",
     "Reason",
+    "Recording",
     "RecordingError",
     "RegistrationError",
     "Scan",
@@ -37,4 +41,5 @@ __all__ = [
     "__version__",
     "reference_scanner",
     "triangulate",
+    "write_json",
 ]

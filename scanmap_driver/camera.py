@@ -1,9 +1,9 @@
 """Cameras: live V4L2 capture, video files and rendered frames behind one interface.
 
-Every camera delivers `Frame`s: a BGR uint8 image, a timestamp (s, time.monotonic clock
+Every camera delivers `CameraFrame`s: a BGR uint8 image, a timestamp (s, time.monotonic clock
 for live cameras, the file's timeline for files), a running index and, where the backend
 hands them over, the JPEG bytes the webcam sent, so a recording stores what the camera
-delivered without a second lossy encoding (DESIGN.md).
+delivered without a second lossy encoding (docs/architecture.md).
 
 Live capture (`V4L2Camera`) asks for the reference settings (640x480, 25 frames/s, MJPG)
 and the paper's colour-purity settings (fixed low exposure, no sharpening or backlight
@@ -32,7 +32,7 @@ log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
-class Frame:
+class CameraFrame:
     """One camera frame.
 
     image: HxWx3 uint8 BGR. timestamp: seconds (see the module docstring).
@@ -65,7 +65,7 @@ class Camera(abc.ABC):
         self._last_timestamp: float | None = None
 
     @abc.abstractmethod
-    def read(self) -> Frame:
+    def read(self) -> CameraFrame:
         """The next frame."""
 
     @abc.abstractmethod
@@ -78,13 +78,13 @@ class Camera(abc.ABC):
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _deliver(self, image: np.ndarray, timestamp: float, raw_jpeg: bytes | None) -> Frame:
+    def _deliver(self, image: np.ndarray, timestamp: float, raw_jpeg: bytes | None) -> CameraFrame:
         """Number the frame and count the frames lost since the previous one."""
         if self._last_timestamp is not None:
             self.dropped_frames += missing_frames(self._last_timestamp, timestamp,
                                                   1.0 / self.frame_rate)
         self._last_timestamp = timestamp
-        frame = Frame(image, timestamp, self._delivered, raw_jpeg)
+        frame = CameraFrame(image, timestamp, self._delivered, raw_jpeg)
         self._delivered += 1
         return frame
 
@@ -112,7 +112,7 @@ def _split_raw(buffer: np.ndarray, where: str) -> tuple[np.ndarray, bytes | None
 # -- live capture ------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class CameraSettings:
+class CameraConfig:
     """What to ask of a live camera; None leaves a control as the camera has it.
 
     The values are V4L2's (OpenCV passes them through): auto_exposure 1 is manual;
@@ -171,7 +171,7 @@ def fourcc_text(code: float) -> str:
     return value.to_bytes(4, "little").decode("ascii", errors="replace")
 
 
-def apply_settings(capture: Any, settings: CameraSettings) -> list[SettingResult]:
+def apply_settings(capture: Any, settings: CameraConfig) -> list[SettingResult]:
     """Ask `capture` (a cv2.VideoCapture) for each setting in order, read each back, and
     warn about what the camera refused or changed."""
     results = []
@@ -204,7 +204,7 @@ class V4L2Camera(Camera):
     time at read. `settings_report` lists what was requested and what the camera took.
     """
 
-    def __init__(self, device: int | str = 0, settings: CameraSettings | None = None,
+    def __init__(self, device: int | str = 0, settings: CameraConfig | None = None,
                  capture_factory: Callable[..., Any] = cv2.VideoCapture) -> None:
         super().__init__()
         self.name = f"/dev/video{device}" if isinstance(device, int) else str(device)
@@ -213,7 +213,7 @@ class V4L2Camera(Camera):
             why = "busy or not a camera" if os.path.exists(self.name) else "no such device"
             raise DeviceError(f"camera {self.name}: cannot open it with V4L2 ({why})")
         self._capture = capture
-        self.settings_report = apply_settings(capture, settings or CameraSettings())
+        self.settings_report = apply_settings(capture, settings or CameraConfig())
         fps = float(capture.get(cv2.CAP_PROP_FPS))
         self.frame_rate = fps if fps > 0 else 25.0
         self.fourcc = fourcc_text(capture.get(cv2.CAP_PROP_FOURCC))
@@ -223,7 +223,7 @@ class V4L2Camera(Camera):
                         "recording will re-encode them", self.name, self.fourcc)
         self._device_clock: bool | None = None
 
-    def read(self) -> Frame:
+    def read(self) -> CameraFrame:
         ok, buffer = self._capture.read()
         host_time = time.monotonic()
         if not ok or buffer is None:
@@ -272,7 +272,7 @@ class VideoFileCamera(Camera):
         self.frame_count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
         self._timestamps = None if timestamps is None else np.asarray(timestamps, np.float64)
 
-    def read(self) -> Frame:
+    def read(self) -> CameraFrame:
         ok, buffer = self._capture.read()
         if not ok or buffer is None:
             raise EndOfStream(f"{self.path}: end of video after {self._delivered} frames")
@@ -313,7 +313,7 @@ class RenderedCamera(Camera):
         self._slot = 0
         self._closed = threading.Event()
 
-    def read(self) -> Frame:
+    def read(self) -> CameraFrame:
         if self._closed.is_set():
             raise DeviceError("rendered camera: closed")
         period = 1.0 / self.frame_rate

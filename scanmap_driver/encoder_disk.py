@@ -3,7 +3,7 @@
 The disk is fixed to the robot (`base_link`), centred on the head's axis, face up, and
 seen at the bottom of every camera frame as the head turns above it. Its single track
 carries a de Bruijn sequence B(2, 5): every run of 5 consecutive sectors is unique, so
-any visible run of 5 sectors fixes the heading absolutely (DESIGN.md).
+any visible run of 5 sectors fixes the heading absolutely (docs/architecture.md).
 
 `disk_artwork` lays the disk out for printing at 1:1 with alignment marks; it is written
 as SVG, PDF or PNG (`scanmap encoder-disk`).

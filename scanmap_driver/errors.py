@@ -1,4 +1,4 @@
-"""The one error hierarchy of scanmap (DESIGN.md, "Errors and bad input").
+"""The one error hierarchy of scanmap (docs/architecture.md, "Errors and bad input").
 
 Every error names the file or field at fault and what was expected, so a user can fix
 the input without reading the code.

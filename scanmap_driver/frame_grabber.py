@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 
-from .camera import Camera, Frame
+from .camera import Camera, CameraFrame
 from .drop_oldest_queue import DropOldestQueue
 from .errors import DeviceError
 
@@ -17,7 +17,7 @@ class FrameGrabber:
 
     def __init__(self, camera: Camera, capacity: int = 100) -> None:
         self.camera = camera
-        self._frames: DropOldestQueue[Frame] = DropOldestQueue(capacity)
+        self._frames: DropOldestQueue[CameraFrame] = DropOldestQueue(capacity)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="frame-grabber", daemon=True)
         self._thread.start()
@@ -35,7 +35,7 @@ class FrameGrabber:
                 self._frames.fail(exc)
                 return
 
-    def get(self, timeout: float) -> Frame | None:
+    def get(self, timeout: float) -> CameraFrame | None:
         """The oldest buffered frame; None after `timeout` s; DeviceError if the camera failed."""
         try:
             return self._frames.get(timeout)

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from .camera import Frame
+from .camera import CameraFrame
 from .scanner_model import ScannerModel
 
-HeadingDecoder = Callable[[Frame], "float | None"]
+HeadingDecoder = Callable[[CameraFrame], "float | None"]
 
 
 def encoder_headings(model: ScannerModel) -> HeadingDecoder:
@@ -20,7 +20,7 @@ def encoder_headings(model: ScannerModel) -> HeadingDecoder:
 
     previous: float | None = None
 
-    def decode(frame: Frame) -> float | None:
+    def decode(frame: CameraFrame) -> float | None:
         nonlocal previous
         result = decode_heading(frame.image, model, previous=previous)
         if not result.ok:

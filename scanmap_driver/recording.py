@@ -1,6 +1,6 @@
 """Raw recordings: what the scanner's hardware produced, kept as it was delivered.
 
-A recording is a folder (DESIGN.md):
+A recording is a folder (docs/architecture.md):
 
     recording.json       the index (below)
     scan_0000.avi        scan 0's video: MJPG in an AVI container, one JPEG per frame,
@@ -224,7 +224,7 @@ def _pose(se2: np.ndarray | None) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Frame:
+class RecordedFrame:
     """One decoded frame of a scan: its number in the scan, time (s) and BGR image."""
 
     index: int
@@ -287,7 +287,7 @@ class Recording:
         raise RecordingError(f"{self.path}: no scan {index} "
                              f"(scans: {[r.index for r in self.scans]})")
 
-    def frames(self, index: int) -> Iterator[Frame]:
+    def frames(self, index: int) -> Iterator[RecordedFrame]:
         """Decoded frames of scan `index`, in order, each with its time.
 
         A damaged or truncated video yields the frames before the damage, then raises a
@@ -302,7 +302,7 @@ class Recording:
                 raise RecordingError(f"{record.video}: more frames than the "
                                      f"{record.frame_times.shape[0]} frame_times of "
                                      f"{record.sidecar.name}")
-            yield Frame(count - 1, float(record.frame_times[count - 1]),
+            yield RecordedFrame(count - 1, float(record.frame_times[count - 1]),
                         decode_jpeg(jpeg, where, shape))
         if count < record.frame_times.shape[0]:
             raise RecordingError(f"{record.video}: the video ends after {count} of "

@@ -1,6 +1,6 @@
 """One full 360 deg scan: the points of about 50 frames, in `base_link`, with per-point data.
 
-File format (DESIGN.md): `.npz` without pickle holding `points` (N,3) float32 in
+File format (docs/architecture.md): `.npz` without pickle holding `points` (N,3) float32 in
 `base_link`, `colors` (N,3) uint8 RGB, `time` (N,) float64 s, `heading` (N,) float64 rad,
 `frame_index` (N,) int32, `range_sigma` (N,) float32 m, and the scalars/poses below;
 `.ply` export goes through Open3D.

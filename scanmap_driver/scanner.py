@@ -36,7 +36,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .camera import Camera, Frame
+from .camera import Camera, CameraFrame
 from .errors import DeviceError, ScanError
 from .frame_grabber import FrameGrabber
 from .heading_decoder import HeadingDecoder
@@ -61,7 +61,7 @@ class Assembler(Protocol):
 
 
 @dataclass(frozen=True)
-class ScanSettings:
+class ScanConfig:
     """How to drive one scan.
 
     speed: motor speed (per mille) while scanning (720: about 1.8 s per revolution on the
@@ -111,7 +111,7 @@ class ScanResult:
     """Everything one sweep produced, complete or partial.
 
     scan: the points; summary: the assembler's account of them (None without one).
-    frames: every frame (when ScanSettings.keep_frames). frame_times,
+    frames: every frame (when ScanConfig.keep_frames). frame_times,
     headings: per frame taken (heading NaN where undecoded). coverage: heading swept (rad).
     motor_log: what was sent to the motor controller and its STATUS replies, as dicts with
     "t" (monotonic s), "command" ("run", "brake", "status") and "duty" (-1..1, CCW
@@ -122,7 +122,7 @@ class ScanResult:
 
     scan: Scan
     summary: Any = None
-    frames: list[Frame] = field(default_factory=list)
+    frames: list[CameraFrame] = field(default_factory=list)
     frame_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     headings: np.ndarray = field(default_factory=lambda: np.zeros(0))
     coverage: float = 0.0
@@ -165,11 +165,11 @@ class Progress:
 class _Sweep:
     """Data gathered during one sweep."""
 
-    def __init__(self, settings: ScanSettings, assembler: Assembler | None) -> None:
+    def __init__(self, settings: ScanConfig, assembler: Assembler | None) -> None:
         self.settings = settings
         self.assembler = assembler
         self.tracker = HeadingTracker(settings.sign)
-        self.frames: list[Frame] = []
+        self.frames: list[CameraFrame] = []
         self.times: list[float] = []
         self.headings: list[float] = []
         self.motor_log: list[dict] = []
@@ -190,14 +190,14 @@ class Scanner:
 
     def __init__(self, camera: Camera, motor: MotorController, decode_heading: HeadingDecoder,
                  new_assembler: Callable[[], Assembler] | None = None,
-                 settings: ScanSettings | None = None,
+                 settings: ScanConfig | None = None,
                  *, odometry: Odometry | None = None,
                  on_progress: Callable[[Progress], None] | None = None) -> None:
         self.camera = camera
         self.motor = motor
         self.decode_heading = decode_heading
         self.new_assembler = new_assembler
-        self.settings = settings or ScanSettings()
+        self.settings = settings or ScanConfig()
         self.odometry = odometry
         self.on_progress = on_progress
         self.last_result: ScanResult | None = None
@@ -283,7 +283,7 @@ class Scanner:
             self._report("sweep", sweep, grabber, target)
 
     def _next_frame(self, sweep: _Sweep, grabber: FrameGrabber, result: ScanResult | None = None
-                    ) -> Frame:
+                    ) -> CameraFrame:
         """The next frame, or ScanFailed("camera") when the camera failed or fell silent
         (ScanFailed("cancelled") when the scan was cancelled)."""
         if self._cancel is not None and self._cancel.is_set():
@@ -330,7 +330,7 @@ class Scanner:
                                 "ok": error is None})
         return error
 
-    def _take(self, sweep: _Sweep, frame: Frame) -> None:
+    def _take(self, sweep: _Sweep, frame: CameraFrame) -> None:
         """Decode, track and assemble one frame of the sweep."""
         if sweep.assembler is None:
             heading = self.decode_heading(frame)

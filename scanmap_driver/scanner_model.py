@@ -1,6 +1,6 @@
 """The scanner model: camera intrinsics, camera and laser in the rotating head, encoder disk.
 
-Frames (DESIGN.md): `base_link` has its origin on the floor under the scanner axis;
+Frames (docs/architecture.md): `base_link` has its origin on the floor under the scanner axis;
 `head` is `base_link` (through the optional `head_mount`) turned about z by the heading
 theta; `camera` is OpenCV's optical frame (z forward, x right, y down), mounted on its
 side so that the 640-pixel image side is vertical: image u grows toward the floor and
@@ -116,12 +116,15 @@ class LaserPlane:
 
     @classmethod
     def from_point_normal(cls, origin: Any, normal: Any) -> LaserPlane:
-        """Plane through `origin` with the normalised `normal`."""
+        """Plane through `origin` with the normalised `normal` (a normal already unit to
+        1e-12 is kept bit for bit, so that a saved model loads back identical)."""
         normal = np.asarray(normal, dtype=np.float64)
         norm = np.linalg.norm(normal)
         if not np.isfinite(norm) or norm < 1e-12:
             raise CalibrationError(f"laser.normal: expected a non-zero vector, got {normal}")
-        return cls(tuple(map(float, origin)), tuple(map(float, normal / norm)))
+        if abs(norm - 1.0) > 1e-12:
+            normal = normal / norm
+        return cls(tuple(map(float, origin)), tuple(map(float, normal)))
 
     @classmethod
     def from_angles(cls, origin: Any, pitch: float, roll: float) -> LaserPlane:

@@ -1,6 +1,6 @@
 """Rigid transforms: 4x4 float64 poses, rotations about the axes, SE(2) helpers, quaternions.
 
-Conventions (DESIGN.md): REP-103 axes, poses map points from the child frame into the
+Conventions (docs/architecture.md): REP-103 axes, poses map points from the child frame into the
 parent frame, `T_parent_child @ [p_child, 1] = [p_parent, 1]`.
 """
 

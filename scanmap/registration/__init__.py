@@ -3,7 +3,7 @@
 Entry points: `ScanOdometry` registers a sequence of scans (odometry prior, de-skew,
 local map, recovery); `register_scan` registers one prepared scan (`prepare_source`)
 against a `LocalMap` with a `Prior`. Results are `RegistrationResult`s with a pose,
-covariance, fitness, inlier RMSE, degenerate directions and a `Status`.
+covariance, fitness, inlier RMSE, degenerate directions and a `RegistrationStatus`.
 
 The floor: it constrains only z, roll and pitch. Planar mode (the default: the floor is
 flat, the pose is x, y, yaw) drops points below `floor_band` before anything else, and
@@ -12,26 +12,26 @@ neither the floor nor a table top can pull x, y or yaw. SE(3) mode keeps the flo
 is what fixes z, roll and pitch there.
 """
 
-from .config import RegistrationConfig
-from .degeneracy import Degeneracy, analyse_degeneracy
-from .deskew import deskew_points
-from .local_map import LocalMap
-from .matcher import register_scan
-from .odometry import ScanOdometry
-from .preprocess import Source, prepare_source
-from .prior import OdometryNoise, Prior
-from .result import RegistrationResult, Status
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.degeneracy import Degeneracy, analyse_degeneracy
+from scanmap.registration.deskew import deskew_points
+from scanmap.registration.local_map import LocalMap
+from scanmap.registration.matcher import register_scan
+from scanmap.registration.odometry import ScanOdometry
+from scanmap.registration.preprocess import Source, prepare_source
+from scanmap.registration.prior import OdometryNoiseConfig, Prior
+from scanmap.registration.result import RegistrationResult, RegistrationStatus
 
 __all__ = [
     "Degeneracy",
     "LocalMap",
-    "OdometryNoise",
+    "OdometryNoiseConfig",
     "Prior",
     "RegistrationConfig",
     "RegistrationResult",
+    "RegistrationStatus",
     "ScanOdometry",
     "Source",
-    "Status",
     "analyse_degeneracy",
     "deskew_points",
     "prepare_source",

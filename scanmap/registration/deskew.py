@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .lie import pose_log
+from scanmap.registration.lie import pose_log
 
 
 def deskew_points(points: np.ndarray, times: np.ndarray, motion: np.ndarray,

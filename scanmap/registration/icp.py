@@ -25,13 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .config import RegistrationConfig
-from .degeneracy import Degeneracy, analyse_degeneracy
-from .lie import PLANAR_AXES, between, retract
-from .local_map import LINE, PLANE, LocalMap
-from .preprocess import Source
-from .prior import Prior
-from .voxel_hash import table_find, voxel_key
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.degeneracy import Degeneracy, analyse_degeneracy
+from scanmap.registration.lie import PLANAR_AXES, between, retract
+from scanmap.registration.local_map import LINE, PLANE, LocalMap
+from scanmap.registration.preprocess import Source
+from scanmap.registration.prior import Prior
+from scanmap.registration.voxel_hash import table_find, voxel_key
 
 ALL_AXES = np.arange(6)
 _ROTATIONS = np.array([False, False, False, True, True, True])

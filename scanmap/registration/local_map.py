@@ -23,10 +23,8 @@ import math
 import numpy as np
 from numba import njit
 
-from scanmap_driver.errors import MapError
-
-from .planes import LINE, PLANE, accumulate, fit_voxel, pool_neighbours
-from .voxel_hash import (
+from scanmap.registration.planes import LINE, PLANE, accumulate, fit_voxel, pool_neighbours
+from scanmap.registration.voxel_hash import (
     COORD_LIMIT,
     fill_table,
     key_coords,
@@ -34,6 +32,7 @@ from .voxel_hash import (
     table_insert,
     voxel_key,
 )
+from scanmap_driver.errors import MapError
 
 __all__ = ["LINE", "PLANE", "LocalMap"]
 

@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import RegistrationConfig
-from .icp import ALL_AXES, Alignment, align
-from .lie import PLANAR_AXES, between
-from .local_map import LocalMap
-from .preprocess import Source
-from .prior import Prior
-from .recovery import coarse_search
-from .result import RegistrationResult, Status
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.icp import ALL_AXES, Alignment, align
+from scanmap.registration.lie import PLANAR_AXES, between
+from scanmap.registration.local_map import LocalMap
+from scanmap.registration.preprocess import Source
+from scanmap.registration.prior import Prior
+from scanmap.registration.recovery import coarse_search
+from scanmap.registration.result import RegistrationResult, RegistrationStatus
 
 _RECOVERY_GAIN = 0.1  # the coarse search must beat the guess's score by this much
 
@@ -25,7 +25,7 @@ def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: 
                   config: RegistrationConfig) -> RegistrationResult:
     """Register `source` against `local_map`; the result's pose is map-local."""
     if len(source) < config.min_points:
-        return _failure(prior, Status.TOO_FEW_POINTS, len(source),
+        return _failure(prior, RegistrationStatus.TOO_FEW_POINTS, len(source),
                         f"{len(source)} source points after filtering, need "
                         f"{config.min_points}")
     best = align(source, local_map, prior.pose, prior, threshold, config)
@@ -38,21 +38,23 @@ def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: 
                 best, recovered = second, True
     fitness = _fitness(best, source)
     if not best.finite:
-        return _failure(prior, Status.DIVERGED, len(source), "the solution is not finite")
+        return _failure(prior, RegistrationStatus.DIVERGED, len(source),
+                        "the solution is not finite")
     if fitness < config.min_fitness:
-        return _failure(prior, Status.NO_OVERLAP, len(source),
+        return _failure(prior, RegistrationStatus.NO_OVERLAP, len(source),
                         f"only {fitness:.0%} of the points match the map "
                         f"(need {config.min_fitness:.0%})", fitness)
     correction = between(prior.pose, best.pose)
     moved, turned = np.linalg.norm(correction[:3]), np.linalg.norm(correction[3:])
     if moved > config.max_correction or turned > config.max_rotation:
-        return _failure(prior, Status.DIVERGED, len(source),
+        return _failure(prior, RegistrationStatus.DIVERGED, len(source),
                         f"correction of {moved:.2f} m, {np.degrees(turned):.0f} deg from the "
                         "guess is beyond max_correction / max_rotation", fitness)
     axes = PLANAR_AXES if config.planar else ALL_AXES
     directions = np.zeros((int(best.degeneracy.degenerate.sum()), 6))
     directions[:, axes] = best.degeneracy.degenerate_directions
-    return RegistrationResult(pose=best.pose, covariance=best.covariance, status=Status.OK,
+    return RegistrationResult(pose=best.pose, covariance=best.covariance,
+                              status=RegistrationStatus.OK,
                               fitness=fitness, inlier_rmse=best.inlier_rmse,
                               degenerate_directions=directions, iterations=best.iterations,
                               recovered=recovered, num_points=len(source),
@@ -63,7 +65,7 @@ def _fitness(alignment: Alignment, source: Source) -> float:
     return alignment.inliers / max(len(source), 1)
 
 
-def _failure(prior: Prior, status: Status, num_points: int, message: str,
+def _failure(prior: Prior, status: RegistrationStatus, num_points: int, message: str,
              fitness: float = float("nan")) -> RegistrationResult:
     return RegistrationResult(pose=prior.pose.copy(), covariance=prior.covariance.copy(),
                               status=status, fitness=fitness, num_points=num_points,

@@ -17,20 +17,19 @@ from dataclasses import replace
 
 import numpy as np
 
+from scanmap.io.trajectory import Trajectory
+from scanmap.registration.calibration import OdometryCalibration
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.lie import pose_exp, pose_log
+from scanmap.registration.local_map import LocalMap
+from scanmap.registration.matcher import register_scan
+from scanmap.registration.preprocess import Source, prepare_source
+from scanmap.registration.prior import OdometryNoiseConfig, Prior
+from scanmap.registration.result import RegistrationResult, RegistrationStatus
+from scanmap.registration.threshold import AdaptiveThreshold
 from scanmap_driver.errors import RegistrationError
 from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose
-
-from ..trajectory import Trajectory
-from .calibration import OdometryCalibration
-from .config import RegistrationConfig
-from .lie import pose_exp, pose_log
-from .local_map import LocalMap
-from .matcher import register_scan
-from .preprocess import Source, prepare_source
-from .prior import OdometryNoise, Prior
-from .result import RegistrationResult, Status
-from .threshold import AdaptiveThreshold
 
 _UNKNOWN_SIGMA = 1.0  # m and rad: the first scans' guess without odometry
 
@@ -39,10 +38,10 @@ class ScanOdometry:
     """Registers a sequence of scans; `poses` and `results` grow with each call."""
 
     def __init__(self, config: RegistrationConfig | None = None,
-                 noise: OdometryNoise | None = None,
+                 noise: OdometryNoiseConfig | None = None,
                  initial_pose: np.ndarray | None = None) -> None:
         self.config = config or RegistrationConfig()
-        self.noise = noise or OdometryNoise()
+        self.noise = noise or OdometryNoiseConfig()
         self.initial_pose = np.eye(4) if initial_pose is None else \
             np.asarray(initial_pose, dtype=np.float64)
         self.threshold = AdaptiveThreshold(self.config)
@@ -101,7 +100,8 @@ class ScanOdometry:
         source = prepare_source(points, self.config, range_sigma, times, scan_motion)
         if not self._local:
             result = RegistrationResult(pose=prior.pose, covariance=np.zeros((6, 6)),
-                                        status=Status.INITIALISED, num_points=len(source),
+                                        status=RegistrationStatus.INITIALISED,
+                                        num_points=len(source),
                                         message="first scan: the map starts here")
         else:
             result = register_scan(source, self.local_map, prior, self.threshold.value,

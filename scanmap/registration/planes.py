@@ -13,7 +13,7 @@ import math
 
 from numba import njit
 
-from .voxel_hash import table_find, voxel_key
+from scanmap.registration.voxel_hash import table_find, voxel_key
 
 
 @njit(cache=True, nogil=True)

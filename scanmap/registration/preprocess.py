@@ -22,10 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .config import RegistrationConfig
-from .deskew import apply_motion, deskew_twist, motion_at, scan_fraction
-from .planes import LINE, PLANE, accumulate, fit_voxel, pool_neighbours
-from .voxel_hash import grown, new_table, table_insert, voxel_key
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.deskew import apply_motion, deskew_twist, motion_at, scan_fraction
+from scanmap.registration.planes import LINE, PLANE, accumulate, fit_voxel, pool_neighbours
+from scanmap.registration.voxel_hash import grown, new_table, table_insert, voxel_key
 
 _LIMIT_SIGMAS = 3.0
 _FIRST_TABLE = 4096  # voxels; the kernel doubles the table as it fills

@@ -13,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scanmap.registration.lie import pose_log
 from scanmap_driver.errors import RegistrationError
-
-from .lie import pose_log
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,7 +43,7 @@ class Prior:
 
 
 @dataclass(frozen=True)
-class OdometryNoise:
+class OdometryNoiseConfig:
     """Standard deviations of wheel odometry and of the fallbacks without it.
 
     trans_per_metre, trans_per_radian: translation sigma (m) per metre driven and per

@@ -17,11 +17,10 @@ import numpy as np
 from numba import njit
 from scipy.ndimage import distance_transform_edt
 
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.local_map import LINE, PLANE, LocalMap
+from scanmap.registration.preprocess import Source
 from scanmap_driver.transforms import rot_z
-
-from .config import RegistrationConfig
-from .local_map import LINE, PLANE, LocalMap
-from .preprocess import Source
 
 _MAX_POINTS = 400
 _NEAR_BEST = 0.98

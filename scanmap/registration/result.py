@@ -10,7 +10,7 @@ import numpy as np
 from scanmap_driver.errors import RegistrationError
 
 
-class Status(enum.Enum):
+class RegistrationStatus(enum.Enum):
     """How a registration ended. Only OK and INITIALISED carry a measured pose."""
 
     OK = "ok"
@@ -37,7 +37,7 @@ class RegistrationResult:
 
     pose: np.ndarray
     covariance: np.ndarray
-    status: Status
+    status: RegistrationStatus
     fitness: float = float("nan")
     inlier_rmse: float = float("nan")
     degenerate_directions: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
@@ -49,7 +49,7 @@ class RegistrationResult:
     @property
     def ok(self) -> bool:
         """True when the pose was measured (or the scan started the map)."""
-        return self.status in (Status.OK, Status.INITIALISED)
+        return self.status in (RegistrationStatus.OK, RegistrationStatus.INITIALISED)
 
     @property
     def degenerate(self) -> bool:

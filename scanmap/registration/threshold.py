@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import RegistrationConfig
-from .lie import pose_log
+from scanmap.registration.config import RegistrationConfig
+from scanmap.registration.lie import pose_log
 
 _MIN_MOTION = 0.02  # m (or rad times 1 m): below this the robot stood still
 

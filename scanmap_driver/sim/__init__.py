@@ -3,7 +3,7 @@
 Public API:
 
 * `load_scene(path)`, `builtin_scene(name)`, `builtin_scene_names()`, `resolve_scene(name
-  or path)` -> `Scene`: the `scanmap.scene/1` format (DESIGN.md), validated with errors
+  or path)` -> `Scene`: the `scanmap.scene/1` format (docs/architecture.md), validated with errors
   naming the field. Built-in: `corridor` (1.5 m x 23 m, 50 poses 0.4 m apart) and
   `office` (6 x 5 m, table overhang, chair legs, low step, red objects; 24 poses).
 * `ideal_scans(scene, model=None, *, seed=0, scans=None, pixel_sigma=None,
@@ -14,7 +14,7 @@ Public API:
   recording with the same seed.
 * `plan_scans(scene, model, seed, count)` -> `ScanPlan` per scan: frame times, the DC
   motor's heading profile, true poses and odometry.
-* `Renderer(scene, model, camera=CameraSettings(), laser=LaserAppearance())` with
+* `Renderer(scene, model, camera=SimCameraConfig(), laser=LaserAppearance())` with
   `render(plan, frame, rng)` -> `RenderedFrame` (the MJPG bytes, the decoded BGR image as
   the webcam delivers it, and `FrameTruth`: heading, pose, every stripe point with its
   true 3D point in `head`/`base_link`/`map` and shadow flag, the laser pixel mask), and
@@ -23,12 +23,16 @@ Public API:
 * `simulate_recording(scene, out, model, seed=, scans=)` writes a raw recording
   (`scanmap_driver.recording`) with `ground_truth/` (`truth.ScanTruth`, `raster`);
   `simulate_ideal` writes ideal scans. `scanmap simulate` is the command line.
-* `truth_raster(scene, resolution, low, high)`: obstacle / floor / outside per cell.
+* `truth_raster(scene, resolution, low, high)`: `RASTER_OBSTACLE` / `RASTER_FLOOR` /
+  `RASTER_OUTSIDE` per cell. `truth_path(recording, index)`: where a scan's truth lives.
 """
 
-from .camera_effects import CameraSettings
+from .camera_effects import SimCameraConfig
 from .ideal import IdealScan, ideal_scans
 from .plan import ScanPlan, plan_scans
+from .raster import FLOOR as RASTER_FLOOR
+from .raster import OBSTACLE as RASTER_OBSTACLE
+from .raster import OUTSIDE as RASTER_OUTSIDE
 from .raster import TruthRaster, truth_raster
 from .render import FrameTruth, LaserAppearance, RenderedFrame, Renderer
 from .scene import (
@@ -41,11 +45,13 @@ from .scene import (
     resolve_scene,
 )
 from .simulate import simulate_ideal, simulate_recording
-from .truth import ScanTruth
+from .truth import ScanTruth, truth_path
 
 __all__ = [
+    "RASTER_FLOOR",
+    "RASTER_OBSTACLE",
+    "RASTER_OUTSIDE",
     "Box",
-    "CameraSettings",
     "Cylinder",
     "FrameTruth",
     "IdealScan",
@@ -55,6 +61,7 @@ __all__ = [
     "ScanPlan",
     "ScanTruth",
     "Scene",
+    "SimCameraConfig",
     "TruthRaster",
     "builtin_scene",
     "builtin_scene_names",
@@ -64,5 +71,6 @@ __all__ = [
     "resolve_scene",
     "simulate_ideal",
     "simulate_recording",
+    "truth_path",
     "truth_raster",
 ]

@@ -25,7 +25,7 @@ _SAMPLING = {
 
 
 @dataclass(frozen=True)
-class CameraSettings:
+class SimCameraConfig:
     """Exposure and sensor of the simulated webcam.
 
     exposure: shutter time (s); the paper fixes a low exposure so the laser saturates less.
@@ -76,7 +76,7 @@ def mosaic(rgb: np.ndarray) -> np.ndarray:
     return out
 
 
-def expose(radiance: np.ndarray, settings: CameraSettings,
+def expose(radiance: np.ndarray, settings: SimCameraConfig,
            rng: np.random.Generator) -> np.ndarray:
     """The 8-bit BGR image the camera makes of (H, W, 3) RGB radiance."""
     electrons = mosaic(radiance) * np.float32(settings.scale * settings.full_well)
@@ -89,7 +89,7 @@ def expose(radiance: np.ndarray, settings: CameraSettings,
     return np.take(SRGB, linear)
 
 
-def encode_mjpg(image: np.ndarray, settings: CameraSettings) -> bytes:
+def encode_mjpg(image: np.ndarray, settings: SimCameraConfig) -> bytes:
     """The JPEG bytes of one MJPG frame, as the webcam sends them."""
     ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, settings.jpeg_quality,
                                             cv2.IMWRITE_JPEG_SAMPLING_FACTOR,

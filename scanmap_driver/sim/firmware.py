@@ -42,7 +42,7 @@ from ..motor import (
     frame_line,
     parse_line,
 )
-from .motor_model import STEP, DcMotor, MotorParameters, ScanMotion
+from .motor_model import STEP, DcMotor, MotorModelConfig, ScanMotion
 from .plan import ScanPlan
 from .scene import Motion
 
@@ -83,12 +83,12 @@ class SimulatedFirmware:
     opens the port and answers nothing for `boot_time` s, then announces `! BOOT`.
     """
 
-    def __init__(self, motor: MotorParameters | None = None, *, start_angle: float = 0.0,
+    def __init__(self, motor: MotorModelConfig | None = None, *, start_angle: float = 0.0,
                  seed: int = 0, tick: float = 0.003, protocol: int = PROTOCOL_VERSION,
                  device_name: str = DEVICE_NAME, firmware: str = "1.0.0-sim",
                  reset_on_open: bool = True, boot_time: float = 0.3,
                  history_capacity: int = 1 << 16) -> None:
-        self.motor = DcMotor(motor or MotorParameters(), np.random.default_rng(seed),
+        self.motor = DcMotor(motor or MotorModelConfig(), np.random.default_rng(seed),
                              start_angle)
         self.tick = tick
         self._hello = (f"{device_name} proto={protocol} fw={firmware} drive=dc")

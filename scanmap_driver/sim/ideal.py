@@ -22,7 +22,7 @@ from ..transforms import se2_to_pose
 from ..triangulation import triangulate
 from .geometry import World
 from .laser_stripe import points_from_fan
-from .motor_model import MotorParameters
+from .motor_model import MotorModelConfig
 from .plan import ScanPlan, plan_scans, stream
 from .scene import Scene
 from .texture import texture_factor
@@ -52,7 +52,7 @@ class IdealScan:
 
 def ideal_scans(scene: Scene, model: ScannerModel | None = None, *, seed: int = 0,
                 scans: int | None = None, pixel_sigma: float | None = None,
-                heading_sigma: float = 0.0, motor: MotorParameters | None = None,
+                heading_sigma: float = 0.0, motor: MotorModelConfig | None = None,
                 threads: int = 0) -> Iterator[IdealScan]:
     """Ideal scans of the first `scans` scan poses (all by default), one at a time.
 

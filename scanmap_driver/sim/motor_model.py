@@ -22,7 +22,7 @@ GEAR_PHASES = (0.7, 2.1)  # rad: where the ripple peaks, fixed by the gear train
 
 
 @dataclass(frozen=True)
-class MotorParameters:
+class MotorModelConfig:
     """A small geared DC motor with the head on its shaft.
 
     full_speed: head speed (rad/s) at duty 1 and nominal load.
@@ -97,7 +97,7 @@ class DcMotor:
     receives duty commands in real time.
     """
 
-    def __init__(self, params: MotorParameters, rng: np.random.Generator,
+    def __init__(self, params: MotorModelConfig, rng: np.random.Generator,
                  heading: float = 0.0) -> None:
         self.params = params
         self.rng = rng
@@ -160,7 +160,7 @@ class ScanMotion:
         return float(self.times[-1])
 
 
-def scan_motion(params: MotorParameters, rng: np.random.Generator, start_heading: float,
+def scan_motion(params: MotorModelConfig, rng: np.random.Generator, start_heading: float,
                 overlap: float = math.radians(10.0), limit: float = 10.0) -> ScanMotion:
     """Simulate one reciprocating scan starting at rest at `start_heading`.
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from ..transforms import wrap_angle
-from .scene import OdometryNoise
+from .scene import SimOdometryNoise
 
 PATH_STEP = 0.02  # m (and rad): spacing of the dense true path the odometry integrates
 
@@ -67,7 +67,7 @@ def _turn(xy: np.ndarray, yaw: float, goal_yaw: float) -> np.ndarray:
     return np.column_stack([np.broadcast_to(xy, (n - 1, 2)), yaws])
 
 
-def odometry_path(path: np.ndarray, noise: OdometryNoise,
+def odometry_path(path: np.ndarray, noise: SimOdometryNoise,
                   rng: np.random.Generator) -> np.ndarray:
     """Noisy odometry (M, 3) in `odom` along a dense true path (M, 3) in `map`.
 

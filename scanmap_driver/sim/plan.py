@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import SceneError
 from ..scanner_model import ScannerModel
 from ..transforms import se2_to_pose
-from .motor_model import MotorParameters, ScanMotion, scan_motion
+from .motor_model import MotorModelConfig, ScanMotion, scan_motion
 from .odometry import arc_poses, dense_arc, dense_drive, odometry_path
 from .scene import Motion, Scene
 
@@ -82,9 +82,9 @@ class ScanPlan:
 
 
 def plan_scans(scene: Scene, model: ScannerModel, seed: int, count: int | None = None,
-               motor: MotorParameters | None = None) -> list[ScanPlan]:
+               motor: MotorModelConfig | None = None) -> list[ScanPlan]:
     """Plans for the first `count` scan poses of the scene (all when None)."""
-    motor = motor or MotorParameters()
+    motor = motor or MotorModelConfig()
     total = scene.scan_poses.shape[0]
     count = total if count is None else count
     if not 1 <= count <= total:

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from ..scanner_model import ScannerModel
-from .camera_effects import CameraSettings, encode_mjpg, expose
+from .camera_effects import SimCameraConfig, encode_mjpg, expose
 from .geometry import World, disk_distance, rotate
 from .hitmap import HitMap, hit_map
 from .laser_light import defocus_diameter, draw_stripes, speckle, stripe_sigma
@@ -117,7 +117,7 @@ class Renderer:
 
     scene: Scene
     model: ScannerModel
-    camera: CameraSettings = field(default_factory=CameraSettings)
+    camera: SimCameraConfig = field(default_factory=SimCameraConfig)
     laser: LaserAppearance = field(default_factory=LaserAppearance)
     hit_step: int = 4
     scene_step: int = 2

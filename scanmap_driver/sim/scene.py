@@ -1,15 +1,15 @@
-"""Simulator scenes in the `scanmap.scene/1` JSON format (DESIGN.md), validated on load.
+"""Simulator scenes in the `scanmap.scene/1` JSON format (docs/architecture.md), validated on load.
 
 A scene is the floor (the plane z = 0), boxes and vertical cylinders with RGB colours, an
 ambient light level (0 dark room .. 1 bright room) and the robot's stop-and-scan poses
-(x, y, yaw) in `map`. Optional keys this module adds to the format (DESIGN.md allows
+(x, y, yaw) in `map`. Optional keys this module adds to the format (docs/architecture.md allows
 added keys; an unknown key is an error):
 
 * `description`: free text.
 * `texture`: contrast (0..1) of the procedural surface texture, default 0.25.
 * `motion`: `{"speed": m/s, "yaw_rate": rad/s}`, the robot keeps driving at this body
   twist while the head turns (default: stands still during a scan).
-* `odometry`: wheel-odometry noise, see `OdometryNoise`.
+* `odometry`: wheel-odometry noise, see `SimOdometryNoise`.
 * on an object: `name` (free text).
 
 Built-in scenes live as JSON files beside this module (`scenes/<name>.json`).
@@ -65,7 +65,7 @@ class Motion:
 
 
 @dataclass(frozen=True)
-class OdometryNoise:
+class SimOdometryNoise:
     """Wheel-odometry errors: random per metre driven, and systematic (calibration) biases.
 
     distance_sigma: relative distance error per sqrt(m) (random walk).
@@ -93,7 +93,7 @@ class Scene:
     scan_poses: np.ndarray  # (K, 3) float64: x, y, yaw in `map`
     texture: float = DEFAULT_TEXTURE
     motion: Motion = field(default_factory=Motion)
-    odometry: OdometryNoise = field(default_factory=OdometryNoise)
+    odometry: SimOdometryNoise = field(default_factory=SimOdometryNoise)
     description: str = ""
 
     def with_ambient(self, ambient: float) -> Scene:
@@ -129,7 +129,7 @@ class Scene:
                 "texture": self.texture,
                 "motion": {"speed": self.motion.speed, "yaw_rate": self.motion.yaw_rate},
                 "odometry": {k: getattr(self.odometry, k)
-                             for k in OdometryNoise.__dataclass_fields__},
+                             for k in SimOdometryNoise.__dataclass_fields__},
                 "objects": objects, "scan_poses": self.scan_poses.tolist()}
         return data
 
@@ -163,12 +163,12 @@ class Scene:
         motion = check_keys(top.get("motion", {}), where("motion"), err, [],
                             ["speed", "yaw_rate"])
         odom = check_keys(top.get("odometry", {}), where("odometry"), err, [],
-                          list(OdometryNoise.__dataclass_fields__))
-        defaults = OdometryNoise()
-        odometry = OdometryNoise(**{
+                          list(SimOdometryNoise.__dataclass_fields__))
+        defaults = SimOdometryNoise()
+        odometry = SimOdometryNoise(**{
             k: number(odom.get(k, getattr(defaults, k)), where(f"odometry.{k}"), err,
                       low=None if k.endswith("bias") else 0.0)
-            for k in OdometryNoise.__dataclass_fields__})
+            for k in SimOdometryNoise.__dataclass_fields__})
         for key in ("name", "description"):
             if not isinstance(top.get(key, ""), str):
                 raise err(f"{where(key)}: expected a string")

@@ -25,7 +25,7 @@ from ..files import atomic_path
 from ..recording import GROUND_TRUTH, RecordingWriter, scan_name
 from ..scanner_model import ScannerModel
 from ..transforms import rotation_to_quaternion
-from .camera_effects import CameraSettings
+from .camera_effects import SimCameraConfig
 from .geometry import scene_planes
 from .ideal import ideal_scans
 from .plan import ScanPlan, plan_scans
@@ -48,7 +48,7 @@ def lit_scene(scene: Scene, lighting: str | None) -> Scene:
 
 def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: ScannerModel, *,
                        seed: int = 0, scans: int | None = None,
-                       camera: CameraSettings | None = None, workers: int = 1,
+                       camera: SimCameraConfig | None = None, workers: int = 1,
                        progress: Callable[[str], None] | None = None) -> Path:
     """Render and write a raw recording with ground truth; returns its folder.
 
@@ -57,7 +57,7 @@ def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: Scanner
     with workers > 1 needs the usual `if __name__ == "__main__":` guard. Every frame's
     noise has its own seed, so the files are the same for any number of workers.
     """
-    camera = camera or CameraSettings()
+    camera = camera or SimCameraConfig()
     out = Path(out)
     plans = plan_scans(scene, model, seed, scans)
     writer = RecordingWriter(out, model, source="simulator", extra={
@@ -84,7 +84,7 @@ def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: Scanner
 _worker: dict[str, Renderer] = {}  # the renderer of a worker process
 
 
-def _start_worker(scene: dict, model: dict, camera: CameraSettings) -> None:
+def _start_worker(scene: dict, model: dict, camera: SimCameraConfig) -> None:
     _worker["renderer"] = Renderer(Scene.from_dict(scene), ScannerModel.from_dict(model),
                                    camera)
 
@@ -96,7 +96,7 @@ def _render_task(task: tuple[ScanPlan, int, int]) -> RenderedFrame:
 
 
 @contextlib.contextmanager
-def _frame_pool(scene: Scene, model: ScannerModel, camera: CameraSettings,
+def _frame_pool(scene: Scene, model: ScannerModel, camera: SimCameraConfig,
                 workers: int) -> Iterator[Callable[[list], list[RenderedFrame]]]:
     """A function rendering a list of (plan, frame, seed) tasks, in worker processes."""
     init = (scene.to_dict(), model.to_dict(), camera)

@@ -8,7 +8,7 @@ import math
 from hypothesis import given
 from hypothesis import strategies as st
 
-from scanmap.obstacles import Nearest, Status
+from scanmap.navigation.obstacles import Nearest, QueryStatus
 
 from .conftest import run_example
 
@@ -39,23 +39,23 @@ def test_the_controller_drives_on_fresh_data_and_stops_when_it_goes_stale(office
 
 
 @given(distance=st.floats(0.0, 10.0), closer=st.floats(0.0, 10.0),
-       status=st.sampled_from(list(Status)), age=st.sampled_from([0.1, math.inf]))
+       status=st.sampled_from(list(QueryStatus)), age=st.sampled_from([0.1, math.inf]))
 def test_the_control_law(examples_on_path, distance, closer, status, age):
     import controller
 
     limits = controller.Limits()
 
-    def speed(d: float, s: Status = status) -> float:
+    def speed(d: float, s: QueryStatus = status) -> float:
         return controller.speed_command(Nearest(d, 0.0, (0.0, 0.0), 0.0, age, s), limits)[0]
 
     value = speed(distance)
     assert 0.0 <= value <= limits.top
-    if status in (Status.STALE, Status.FAULTED) or age == math.inf:
+    if status in (QueryStatus.STALE, QueryStatus.FAULTED) or age == math.inf:
         assert value == 0.0
-    if status == Status.UNKNOWN:
+    if status == QueryStatus.UNKNOWN:
         assert value <= limits.creep
     if distance <= limits.stop:
         assert value == 0.0
-    if status == Status.OK and age < math.inf:
+    if status == QueryStatus.OK and age < math.inf:
         assert speed(min(distance, closer)) <= value  # slower when the obstacle is closer
         assert speed(limits.slow + 1.0) == limits.top

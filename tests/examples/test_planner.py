@@ -14,9 +14,9 @@ from scipy.sparse import lil_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from scanmap import Mapper
-from scanmap.costmap import INSCRIBED, inflate
-from scanmap.evaluation import map_to_world
-from scanmap.mapper_config import MapperConfig
+from scanmap.evaluation.ground_truth import map_to_world
+from scanmap.mapping.config import MapperConfig
+from scanmap.navigation.costmap import INSCRIBED, inflate
 from scanmap_driver import reference_scanner
 from scanmap_driver.sim import builtin_scene, ideal_scans
 from scanmap_driver.transforms import transform_points

@@ -193,7 +193,7 @@ class MappedScene:
 def map_scene(scene: Scene, poses: list[tuple[float, float, float]], grid, *, seed: int = 0,
               first_stamp: float = 0.0, frames: int = 50, rays: int = 400) -> MappedScene:
     """Insert one ideal scan per pose into `grid` (stamps first_stamp, +1, ...)."""
-    from scanmap.rays import scan_rays
+    from scanmap.grid.rays import scan_rays
 
     model = reference_scanner()
     points, labels = [], []

@@ -8,7 +8,7 @@ import itertools
 import numpy as np
 import pytest
 
-from scanmap.carmen import carmen_scan_points, read_carmen
+from scanmap.datasets.carmen import carmen_scan_points, read_carmen
 from scanmap_driver.errors import RecordingError
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose
 from tests.conftest import real_data

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from scanmap.carmen import read_carmen
-from scanmap.carmen_map import carmen_segmentation, fuse_carmen
 from scanmap.cli import main
-from scanmap.floor import FREE, OBSTACLE
-from scanmap.map_io import load_ros_map
+from scanmap.datasets.carmen import read_carmen
+from scanmap.io.map_files import load_ros_map
+from scanmap.navigation.floor import FREE, OBSTACLE
+from scanmap.pipelines.carmen_map import carmen_segmentation, fuse_carmen
 from scanmap_driver.transforms import se2_to_pose, transform_points
 
 from ..conftest import real_data

@@ -10,9 +10,9 @@ import pytest
 
 from scanmap import Mapper, reference_scanner
 from scanmap.cli import main
-from scanmap.floor import FREE, OBSTACLE, UNKNOWN
-from scanmap.map_io import load_map, load_ros_map, read_pgm
-from scanmap.trajectory import read_tum
+from scanmap.io.map_files import load_map, load_ros_map, read_pgm
+from scanmap.io.trajectory import read_tum
+from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN
 from scanmap_driver.recording import Recording
 from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.simulate import simulate_ideal

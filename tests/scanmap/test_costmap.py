@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from scanmap.costmap import (
+from scanmap.navigation.costmap import (
     INSCRIBED,
     LETHAL,
     NO_INFORMATION,
@@ -16,7 +16,7 @@ from scanmap.costmap import (
     inflate,
     occupancy_grid,
 )
-from scanmap.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
+from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
 from scanmap_driver.errors import MapError
 
 

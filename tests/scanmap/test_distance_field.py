@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy import ndimage
 
-from scanmap.distance_field import distance_transform
+from scanmap.navigation.distance_field import distance_transform
 
 
 def check_against_scipy(mask: np.ndarray, pad: int = 0) -> None:

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from scanmap import evaluation
-from scanmap.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
+from scanmap.evaluation import ground_truth as evaluation
+from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
 from scanmap_driver.processing import recording_scans
 from scanmap_driver.recording import Recording
 from scanmap_driver.sim import builtin_scene, truth_raster

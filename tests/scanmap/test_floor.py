@@ -8,18 +8,17 @@ from collections import deque
 import numpy as np
 import pytest
 
-from scanmap import grid_kernels as gk
-from scanmap.floor import (
+from scanmap.grid import _kernels as gk
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.navigation import _kernels as nk
+from scanmap.navigation.floor import (
     FREE,
     OBSTACLE,
-    FloorParams,
+    FloorConfig,
     RobotShape,
-    floor_candidates,
-    grow_region,
     ransac_plane,
     segment,
 )
-from scanmap.grid import GridConfig, HeightGrid
 from scanmap_driver.errors import MapError
 
 from . import scenes as S
@@ -31,7 +30,7 @@ def test_ransac_recovers_a_tilted_plane_among_outliers():
     xy = rng.uniform(-3, 3, (3000, 2))
     z = 0.2 + math.tan(slope) * xy[:, 0] + rng.normal(0, 0.005, 3000)
     outliers = np.column_stack([rng.uniform(-3, 3, (1000, 2)), rng.uniform(0.1, 1.0, 1000)])
-    found = ransac_plane(np.vstack([np.column_stack([xy, z]), outliers]), FloorParams(),
+    found = ransac_plane(np.vstack([np.column_stack([xy, z]), outliers]), FloorConfig(),
                          np.random.default_rng(1))
     assert found is not None
     normal, offset, inliers = found
@@ -44,7 +43,7 @@ def test_ransac_refuses_a_steep_plane():
     rng = np.random.default_rng(2)
     xy = rng.uniform(-1, 1, (500, 2))
     wall = np.column_stack([xy[:, 0], np.zeros(500), xy[:, 1] + 1])
-    assert ransac_plane(wall, FloorParams(), rng) is None
+    assert ransac_plane(wall, FloorConfig(), rng) is None
 
 
 def test_floor_candidates_match_a_numpy_reference():
@@ -54,7 +53,7 @@ def test_floor_candidates_match_a_numpy_reference():
     levels[..., gk.LO] = np.sort(lo, axis=2)
     levels[..., gk.HI] = levels[..., gk.LO] + rng.uniform(0, 0.12, (20, 30, 3))
     nlev = rng.integers(0, 4, (20, 30)).astype(np.uint8)
-    got = floor_candidates(levels, nlev, 0.06, 0.2)
+    got = nk.floor_candidates(levels, nlev, 0.06, 0.2)
     first, second = levels[:, :, 0], levels[:, :, 1]
     thin = first[..., gk.HI] - first[..., gk.LO] <= 0.06
     clear = (nlev == 1) | (second[..., gk.LO] - first[..., gk.HI] >= 0.2)
@@ -69,7 +68,7 @@ def test_grow_region_matches_a_breadth_first_reference():
     heights[rng.random((25, 25)) < 0.2] = np.nan
     seeds = np.zeros((25, 25), bool)
     seeds[12, 12] = seeds[3, 20] = True
-    got = grow_region(heights, seeds, 0.05)
+    got = nk.grow_region(heights, seeds, 0.05)
     inside = seeds.copy()
     queue = deque(zip(*np.nonzero(seeds), strict=True))
     while queue:
@@ -154,7 +153,7 @@ def test_a_2d_laser_map_needs_an_assumed_floor():
     wall = np.column_stack([2.0 * np.cos(angles), 2.0 * np.sin(angles), np.full(360, 0.3)])
     grid.insert(wall, np.array([0.0, 0.0, 0.3]), 0.0)
     layers = grid.layers((-2.5, -2.5, 2.5, 2.5))
-    flat = FloorParams(min_coverage=0.0, detect=False)
+    flat = FloorConfig(min_coverage=0.0, detect=False)
     seg = segment(layers, params=flat, fallback_floor=0.0)
     xs, ys = layers.cell_centers()
     r = np.hypot(*np.meshgrid(xs, ys))

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from scanmap.floor import FREE, OBSTACLE, RobotShape, segment
-from scanmap.grid import GridConfig, HeightGrid
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.navigation.floor import FREE, OBSTACLE, RobotShape, segment
 from scanmap_driver.errors import MapError
 
 from . import scenes as S

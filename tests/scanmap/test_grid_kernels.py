@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from scanmap import grid_kernels as gk
-from scanmap.grid import GridConfig, HeightGrid
+from scanmap.grid import _kernels as gk
+from scanmap.grid.height_grid import GridConfig, HeightGrid
 
 CONFIG = GridConfig(extent=20.0, bundle_run=0)
 

@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from scanmap.grid import GridConfig, HeightGrid
-from scanmap.map_io import load_map, load_ros_map, read_pgm, save_map, save_ros_map
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.io.map_files import load_map, load_ros_map, read_pgm, save_map, save_ros_map
 from scanmap_driver.errors import MapError
 
 from . import scenes as S

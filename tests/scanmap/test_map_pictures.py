@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import io
-
 import cv2
 import numpy as np
 import pytest
 
 from scanmap import MapError
-from scanmap.map_image import (
+from scanmap.io.map_image import (
     BETWEEN_SHADE,
     FREE_SHADE,
     OCCUPIED_SHADE,
@@ -17,8 +15,7 @@ from scanmap.map_image import (
     occupancy_image,
     write_png,
 )
-from scanmap.overhead import FLOOR_BGR, INK, height_colours, overhead_view
-from scanmap.progress import ProgressBar
+from scanmap.io.overhead import FLOOR_BGR, INK, height_colours, overhead_view
 
 
 def test_overhead_shows_the_highest_point_of_each_pixel_coloured_by_height():
@@ -62,13 +59,3 @@ def test_occupancy_image_uses_map_server_shades_north_up(tmp_path):
     np.testing.assert_array_equal(cv2.imread(str(tmp_path / "map.png")), picture.image)
     with pytest.raises(MapError, match="scale"):
         occupancy_image(grid, (0, 0), 0.1, scale=0)
-
-
-def test_progress_bar_writes_a_line_per_tenth_into_a_file():
-    stream = io.StringIO()
-    bar = ProgressBar(total=100, stream=stream)
-    for done in range(1, 101):
-        bar.update(done, "note")
-    lines = stream.getvalue().splitlines()
-    assert len(lines) == 11  # the start, then each tenth
-    assert lines[-1].startswith("[" + "#" * 24 + "] 100/100 scans") and "note" in lines[-1]

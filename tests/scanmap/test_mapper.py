@@ -11,14 +11,14 @@ import pytest
 from scipy.spatial import cKDTree
 
 from scanmap import MapError, Mapper
-from scanmap.evaluation import map_errors, map_to_world
-from scanmap.floor import FREE
-from scanmap.grid import GridConfig
-from scanmap.map_io import load_map, save_map
-from scanmap.mapper_config import MapperConfig
-from scanmap.obstacles import Status
-from scanmap.rays import scan_rays
-from scanmap.scan_motion import frame_poses
+from scanmap.evaluation.ground_truth import map_errors, map_to_world
+from scanmap.grid.height_grid import GridConfig
+from scanmap.grid.rays import scan_rays
+from scanmap.io.map_files import load_map, save_map
+from scanmap.mapping.config import MapperConfig
+from scanmap.mapping.scan_motion import frame_poses
+from scanmap.navigation.floor import FREE
+from scanmap.navigation.obstacles import QueryStatus
 from scanmap_driver import reference_scanner
 from scanmap_driver.scan import Scan
 from scanmap_driver.sim import builtin_scene, ideal_scans, truth_raster
@@ -101,7 +101,7 @@ def test_obstacle_distances_agree_with_the_scene(office, mapped):
     near = (truth < 2.0) & (seen <= truth + 0.01)  # the snapshot's window; seen nearest
     assert near.sum() > 200
     assert np.percentile(np.abs(measured - truth)[near], 95) < 0.03
-    assert all(a.status in (Status.OK, Status.UNKNOWN) for a in answers)
+    assert all(a.status in (QueryStatus.OK, QueryStatus.UNKNOWN) for a in answers)
     clearance = np.array([a.clearance for a in answers])
     assert (clearance <= truth + 0.03).all()  # known free never reaches past an obstacle
 
@@ -144,10 +144,10 @@ def test_frame_poses_interpolate_the_odometry_motion():
 def test_offline_queries_use_the_data_clock_and_live_ones_go_stale(office):
     live = Mapper(reference_scanner(), clock=lambda: 1e6)
     live.add(office[0].scan)
-    assert live.obstacles.nearest(0.0, 0.0).status == Status.STALE
+    assert live.obstacles.nearest(0.0, 0.0).status == QueryStatus.STALE
     offline = Mapper(reference_scanner(), offline=True)
     offline.add(office[0].scan)
-    assert offline.obstacles.nearest(0.0, 0.0).status != Status.STALE
+    assert offline.obstacles.nearest(0.0, 0.0).status != QueryStatus.STALE
 
 
 def test_a_failed_registration_is_recorded_but_not_fused(office):

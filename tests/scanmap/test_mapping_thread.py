@@ -8,21 +8,21 @@ import numpy as np
 import pytest
 
 from scanmap import DeviceError, MapError, Mapper
-from scanmap.grid import GridConfig
-from scanmap.mapper_config import MapperConfig
-from scanmap.obstacles import Status
+from scanmap.grid.height_grid import GridConfig
+from scanmap.mapping.config import MapperConfig
+from scanmap.navigation.obstacles import QueryStatus
 from scanmap_driver import reference_scanner
 from scanmap_driver.continuous_scanning import ContinuousScanning
 from scanmap_driver.scan import Scan
-from scanmap_driver.scanner import ScanSettings
+from scanmap_driver.scanner import ScanConfig
 from scanmap_driver.sim import builtin_scene, ideal_scans
-from scanmap_driver.sim.motor_model import MotorParameters
+from scanmap_driver.sim.motor_model import MotorModelConfig
 from scanmap_driver.transforms import se2_to_pose
 
 from ..scanmap_driver.polling import wait_until
 from ..scanmap_driver.sim_rig import WallAssembler, rig
 
-FAST = MotorParameters(full_speed=2.0 * np.pi * 1.6)  # about 0.9 s per revolution
+FAST = MotorModelConfig(full_speed=2.0 * np.pi * 1.6)  # about 0.9 s per revolution
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +55,7 @@ def test_queries_are_served_while_scans_are_mapped(scans, tmp_path):
     assert len(set(map(id, seen))) >= 2 and stamps == sorted(stamps)  # each a whole scan newer
     for snap, nearest in answers:
         if snap is not None:
-            assert nearest.status in (Status.OK, Status.UNKNOWN)
+            assert nearest.status in (QueryStatus.OK, QueryStatus.UNKNOWN)
             assert np.isfinite(nearest.clearance)
     assert len(Mapper.load(tmp_path / "during.npz", offline=True)) <= len(scans)
 
@@ -70,7 +70,7 @@ def test_a_source_fault_marks_the_obstacle_map_faulted(scans):
     assert mapping.join(timeout=120)
     assert isinstance(mapping.error, DeviceError) and mapping.mapped == 2
     answer = mapper.obstacles.nearest(0.0, 0.0)
-    assert answer.status == Status.FAULTED and answer.clearance == 0.0
+    assert answer.status == QueryStatus.FAULTED and answer.clearance == 0.0
     assert "camera" in mapper.obstacles.fault
 
 
@@ -137,7 +137,7 @@ class RoomAssembler(WallAssembler):
 def test_live_scans_from_the_scanner_are_mapped_while_queries_are_served():
     """The real Scanner on the simulated firmware, scanning continuously; the mapper maps
     in the background on the monotonic clock; when scanning stops the data go stale."""
-    with rig(ScanSettings(continuous=True), FAST) as r:
+    with rig(ScanConfig(continuous=True), FAST) as r:
         r.scanner.new_assembler = RoomAssembler
         mapper = Mapper(reference_scanner(), MapperConfig(max_age=2.0))
         mapper.warm_up()
@@ -147,6 +147,6 @@ def test_live_scans_from_the_scanner_are_mapped_while_queries_are_served():
             answer = mapper.obstacles.nearest(0.0, 0.0)
         assert mapping.join(timeout=10.0) and mapping.error is None
     assert mapper.statuses[0] == "initialised" and "ok" in mapper.statuses[1:]
-    assert answer.status in (Status.OK, Status.UNKNOWN) and answer.age < 2.0
+    assert answer.status in (QueryStatus.OK, QueryStatus.UNKNOWN) and answer.age < 2.0
     assert abs(answer.distance - RoomAssembler.HALF_SIDE) < 0.1  # the nearest wall
-    assert wait_until(lambda: mapper.obstacles.nearest(0.0, 0.0).status == Status.STALE, 5.0)
+    assert wait_until(lambda: mapper.obstacles.nearest(0.0, 0.0).status == QueryStatus.STALE, 5.0)

@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from scanmap.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
-from scanmap.grid import GridConfig, HeightGrid
-from scanmap.obstacles import ObstacleMap, ObstacleSnapshot, Status
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
+from scanmap.navigation.obstacles import ObstacleMap, ObstacleSnapshot, QueryStatus
 from scanmap_driver.errors import MapError
 
 from . import scenes as S
@@ -72,7 +72,7 @@ def test_single_queries_agree_with_the_vectorised_ones(room):
     np.testing.assert_allclose([n.clearance for n in near], obstacles.distance(q))
     np.testing.assert_allclose([n.distance for n in near], obstacles.obstacle_distance(q))
     for (x, y), n in zip(q, near, strict=True):
-        assert n.status == (Status.OK if n.clearance == n.distance else Status.UNKNOWN)
+        assert n.status == (QueryStatus.OK if n.clearance == n.distance else QueryStatus.UNKNOWN)
         assert math.hypot(n.point[0] - x, n.point[1] - y) == pytest.approx(n.distance)
         assert math.atan2(n.point[1] - y, n.point[0] - x) == pytest.approx(n.bearing)
 
@@ -141,7 +141,7 @@ def test_unknown_space_is_never_reported_free(room):
     layers = grid.layers(BOUNDS)
     assert (layers.seen[seg.state == FREE] != 0).all()
     outside = obstacles.nearest(10.0, 10.0)  # never observed, outside the window
-    assert outside.clearance == 0.0 and outside.status == Status.UNKNOWN
+    assert outside.clearance == 0.0 and outside.status == QueryStatus.UNKNOWN
     rows, cols = np.nonzero(seg.state == UNKNOWN)
     xy = np.column_stack([seg.origin[0] + (cols + 0.5) * seg.resolution,
                           seg.origin[1] + (rows + 0.5) * seg.resolution])
@@ -152,12 +152,12 @@ def test_unknown_space_is_never_reported_free(room):
 def test_stale_faulted_or_missing_data_report_no_clearance(room):
     _, grid, obstacles, clock = room
     fresh = obstacles.nearest(0.0, 0.0)
-    assert fresh.status in (Status.OK, Status.UNKNOWN) and fresh.age == pytest.approx(0.5)
+    assert fresh.status in (QueryStatus.OK, QueryStatus.UNKNOWN) and fresh.age == pytest.approx(0.5)
     clock.now = grid.stamp + 5.0
     try:
         for answer in (obstacles.nearest(0.0, 0.0), obstacles.clearance((0.0, 0.0, 0.0)),
                        obstacles.polar(0.0, 0.0, 0.0)):
-            assert answer.status == Status.STALE
+            assert answer.status == QueryStatus.STALE
         assert obstacles.nearest(0.0, 0.0).clearance == 0.0
         assert obstacles.clearance((0.0, 0.0, 0.0)).collision
         assert (obstacles.distance(np.zeros((3, 2))) == 0).all()
@@ -166,11 +166,11 @@ def test_stale_faulted_or_missing_data_report_no_clearance(room):
         clock.now = grid.stamp + 0.5
     obstacles.set_fault("camera unplugged")
     try:
-        assert obstacles.nearest(0.0, 0.0).status == Status.FAULTED
+        assert obstacles.nearest(0.0, 0.0).status == QueryStatus.FAULTED
         assert obstacles.clearance((0.0, 0.0, 0.0)).collision
     finally:
         obstacles.clear_fault()
-    assert ObstacleMap().nearest(0.0, 0.0).status == Status.UNKNOWN  # nothing published
+    assert ObstacleMap().nearest(0.0, 0.0).status == QueryStatus.UNKNOWN  # nothing published
 
 
 def cast_truth(scene: S.Scene, x: float, y: float, angles: np.ndarray) -> np.ndarray:
@@ -251,7 +251,7 @@ def test_a_footprint_reaching_an_obstacle_collides_and_turned_away_clears():
     assert straight.collision and straight.margin == pytest.approx(-0.1)
     turned = obstacles.clearance((0.0, 0.0, math.pi / 2), rectangle)
     assert not turned.collision and turned.margin == pytest.approx(0.4)
-    assert turned.status == Status.UNKNOWN  # the window's edge (unknown) is as near
+    assert turned.status == QueryStatus.UNKNOWN  # the window's edge (unknown) is as near
 
 
 def test_queries_from_another_thread_see_whole_snapshots():
@@ -279,7 +279,7 @@ def test_queries_from_another_thread_see_whole_snapshots():
     stamps = []
     while not stop.is_set():
         answer = obstacles.nearest(0.3, 0.2)
-        assert answer.status in (Status.OK, Status.UNKNOWN)
+        assert answer.status in (QueryStatus.OK, QueryStatus.UNKNOWN)
         assert 0.0 <= answer.clearance <= answer.distance
         stamps.append(obstacles.snapshot.stamp)
     thread.join()

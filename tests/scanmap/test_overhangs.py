@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanmap import grid_kernels as gk
-from scanmap.floor import FREE, RobotShape, segment
-from scanmap.grid import CellLayers
+from scanmap.grid import _kernels as gk
+from scanmap.grid.height_grid import CellLayers
+from scanmap.navigation.floor import FREE, RobotShape, segment
 
 N = 24  # cells per side, 5 cm
 Z_MIN, DZ = -0.35, 0.025

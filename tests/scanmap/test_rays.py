@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanmap.rays import camera_centres, scan_rays
+from scanmap.grid.rays import camera_centres, scan_rays
 from scanmap_driver.errors import ScanError
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import HeadMount, reference_scanner

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanmap.scan_input import ScanSource
+from scanmap.datasets.recordings import ScanSource
 from scanmap_driver.errors import RecordingError
 from scanmap_driver.processing import recording_scans
 from scanmap_driver.recording import Recording, RecordingWriter, read_avi_frames

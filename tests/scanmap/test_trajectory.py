@@ -7,16 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from scanmap.trajectory import (
-    Trajectory,
+from scanmap.evaluation.trajectory_errors import (
     _mean_gaussian_length,
     align_points,
     ate_rmse,
-    read_tum,
     relative_errors,
     shared_error,
-    write_tum,
 )
+from scanmap.io.trajectory import Trajectory, read_tum, write_tum
 from scanmap_driver.errors import MapError
 from scanmap_driver.transforms import make_pose, rot_x, rot_y, rot_z, se2_to_pose
 

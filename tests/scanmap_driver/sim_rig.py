@@ -16,12 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scanmap_driver.camera import Frame, RenderedCamera
+from scanmap_driver.camera import CameraFrame, RenderedCamera
 from scanmap_driver.motor import MotorController
 from scanmap_driver.scan import Scan
-from scanmap_driver.scanner import Scanner, ScanSettings
+from scanmap_driver.scanner import ScanConfig, Scanner
 from scanmap_driver.sim.firmware import SimulatedFirmware
-from scanmap_driver.sim.motor_model import MotorParameters
+from scanmap_driver.sim.motor_model import MotorModelConfig
 
 WALL_RADIUS = 2.0
 WALL_HEIGHTS = np.array([0.2, 0.5, 0.8])
@@ -40,7 +40,7 @@ def image_angle(image: np.ndarray) -> float:
     return angle % (2.0 * math.pi)
 
 
-def read_angle(frame: Frame) -> float:
+def read_angle(frame: CameraFrame) -> float:
     """The heading decoder of the rig."""
     return image_angle(frame.image)
 
@@ -81,7 +81,7 @@ class Rig:
 
 
 @contextlib.contextmanager
-def rig(settings: ScanSettings | None = None, motor: MotorParameters | None = None,
+def rig(settings: ScanConfig | None = None, motor: MotorModelConfig | None = None,
         start_angle: float = 0.3, camera_type: type[RenderedCamera] = RenderedCamera,
         **scanner_options) -> Iterator[Rig]:
     """Firmware, camera, motor client and scanner, all closed at the end."""

@@ -19,7 +19,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from scanmap_driver.camera import (
-    CameraSettings,
+    CameraConfig,
     EndOfStream,
     RenderedCamera,
     V4L2Camera,
@@ -249,7 +249,7 @@ class PickyCapture:
 def test_live_settings_are_read_back_and_refusals_warned(caplog):
     capture = PickyCapture(0, cv2.CAP_V4L2)
     with caplog.at_level(logging.WARNING, "scanmap_driver.camera"):
-        report = apply_settings(capture, CameraSettings())
+        report = apply_settings(capture, CameraConfig())
     by_name = {r.name: r for r in report}
     assert by_name["fourcc"].accepted and by_name["fourcc"].actual == "MJPG"
     assert by_name["width"].accepted and by_name["fps"].actual == 25.0

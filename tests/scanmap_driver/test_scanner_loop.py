@@ -24,13 +24,13 @@ from scanmap_driver.heading_tracker import HeadingTracker
 from scanmap_driver.live_recording import write_scan
 from scanmap_driver.recording import Recording, RecordingWriter, read_avi_frames
 from scanmap_driver.scan import Scan
-from scanmap_driver.scanner import ScanFailed, ScanResult, ScanSettings
-from scanmap_driver.sim.motor_model import MotorParameters
+from scanmap_driver.scanner import ScanConfig, ScanFailed, ScanResult
+from scanmap_driver.sim.motor_model import MotorModelConfig
 
 from .polling import wait_until
 from .sim_rig import WALL_HEIGHTS, WALL_RADIUS, rig
 
-FAST = MotorParameters(full_speed=2.0 * math.pi * 1.6)  # about 0.9 s per revolution
+FAST = MotorModelConfig(full_speed=2.0 * math.pi * 1.6)  # about 0.9 s per revolution
 TURN = 2.0 * math.pi + math.radians(10.0)
 
 
@@ -98,7 +98,7 @@ def test_one_scan_covers_a_turn_with_true_headings_and_returns_the_head():
 
 
 def test_continuous_clockwise_scan_leaves_the_head_where_the_sweep_ended():
-    settings = ScanSettings(direction="CW", continuous=True)
+    settings = ScanConfig(direction="CW", continuous=True)
     with rig(settings, FAST, start_angle=1.0) as r:
         result = r.scanner.scan()
         truth = np.array([r.firmware.angle_at(t) for t in result.frame_times])
@@ -109,7 +109,7 @@ def test_continuous_clockwise_scan_leaves_the_head_where_the_sweep_ended():
 
 
 def test_frames_are_kept_for_a_recording_when_asked():
-    with rig(ScanSettings(keep_frames=True, continuous=True), FAST) as r:
+    with rig(ScanConfig(keep_frames=True, continuous=True), FAST) as r:
         result = r.scanner.scan()
         assert [f.timestamp for f in result.frames] == list(result.frame_times)
         assert np.all(np.diff([f.index for f in result.frames]) >= 1)
@@ -189,7 +189,7 @@ def test_controller_fault_mid_scan_stops_the_scan():
 
 
 def test_scan_over_its_time_limit_is_stopped():
-    with rig(ScanSettings(time_limit=0.5), FAST) as r:
+    with rig(ScanConfig(time_limit=0.5), FAST) as r:
         with pytest.raises(ScanFailed, match=r"exceeded its 0\.5 s time limit") as err:
             r.scanner.scan()
         caught = time.monotonic()
@@ -209,7 +209,7 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_data():
 
 
 def test_unreadable_encoder_never_starts_the_motor():
-    with rig(ScanSettings(stall_time=0.4), FAST) as r:
+    with rig(ScanConfig(stall_time=0.4), FAST) as r:
         r.scanner.new_assembler = None
         r.scanner.decode_heading = lambda frame: None
         with pytest.raises(ScanFailed, match=r"no heading decoded in 0\.4 s before the motor"):
@@ -220,7 +220,7 @@ def test_unreadable_encoder_never_starts_the_motor():
 # -- continuous scanning -----------------------------------------------------------------------
 
 def test_continuous_scanning_drops_the_oldest_scans_for_a_slow_consumer():
-    with rig(ScanSettings(continuous=True), FAST) as r:
+    with rig(ScanConfig(continuous=True), FAST) as r:
         with ContinuousScanning(r.scanner, capacity=1) as scanning:
             assert wait_until(lambda: scanning.scans_taken >= 3, 20.0)
             latest = scanning.get(timeout=5.0)
@@ -236,7 +236,7 @@ def test_continuous_scanning_drops_the_oldest_scans_for_a_slow_consumer():
 
 
 def test_continuous_scanning_hands_the_fault_to_the_consumer():
-    with rig(ScanSettings(continuous=True), FAST) as r:
+    with rig(ScanConfig(continuous=True), FAST) as r:
         scanning = ContinuousScanning(r.scanner, capacity=4)
         scanning.start()
         first = scanning.get(timeout=10.0)
@@ -251,7 +251,7 @@ def test_continuous_scanning_hands_the_fault_to_the_consumer():
 
 
 def test_stopping_continuous_scanning_brakes_at_once_and_keeps_the_partial_scan():
-    with rig(ScanSettings(continuous=True), FAST) as r:
+    with rig(ScanConfig(continuous=True), FAST) as r:
         scanning = ContinuousScanning(r.scanner)
         scanning.start()
         assert wait_until(lambda: r.firmware.driven, 5.0)

@@ -102,4 +102,13 @@ def test_unnormalised_normal_in_a_file_is_normalised(tmp_path):
     data["laser"]["normal"] = [2 * n for n in data["laser"]["normal"]]
     path = tmp_path / "s.json"
     path.write_text(json.dumps(data))
-    assert ScannerModel.load(path).laser == reference_scanner().laser
+    loaded, reference = ScannerModel.load(path).laser, reference_scanner().laser
+    assert loaded.origin == reference.origin
+    np.testing.assert_allclose(loaded.normal, reference.normal, rtol=0, atol=1e-15)
+    assert np.linalg.norm(loaded.normal) == pytest.approx(1.0, abs=1e-15)
+
+
+def test_a_saved_model_loads_back_bit_for_bit(tmp_path):
+    model = reference_scanner()
+    model.save(tmp_path / "s.json")
+    assert ScannerModel.load(tmp_path / "s.json") == model

@@ -7,11 +7,11 @@ import pytest
 
 from scanmap.registration import (
     LocalMap,
-    OdometryNoise,
+    OdometryNoiseConfig,
     Prior,
     RegistrationConfig,
+    RegistrationStatus,
     ScanOdometry,
-    Status,
     prepare_source,
     register_scan,
 )
@@ -29,7 +29,7 @@ from tests.scanmap.registration.scenes import (
 )
 
 CONFIG = RegistrationConfig()
-NOISE = OdometryNoise()
+NOISE = OdometryNoiseConfig()
 
 
 def _map_of(scene, poses, rng):
@@ -62,7 +62,7 @@ def test_featureless_corridor_follows_odometry_along_its_axis():
     truth, guess = (0.6, 0.03, 0.02), (0.66, -0.01, -0.01)
     result, prior = _register(corridor(with_features=False), [(0.0, 0.0, 0.0), (0.3, 0.0, 0.0)],
                               truth, guess, rng)
-    assert result.status is Status.OK and result.degenerate
+    assert result.status is RegistrationStatus.OK and result.degenerate
     (direction,) = result.degenerate_directions
     assert abs(direction[0]) > 0.99  # the corridor's axis, x
     error = _error(result, truth)
@@ -78,7 +78,7 @@ def test_a_corridor_with_features_is_not_degenerate():
     truth = (7.9, 0.0, 0.05)  # a box 1 m ahead
     result, _ = _register(corridor(), [(7.3, 0.0, 0.0), (7.6, 0.0, 0.0)], truth,
                           (7.92, 0.01, 0.06), rng)
-    assert result.status is Status.OK and not result.degenerate
+    assert result.status is RegistrationStatus.OK and not result.degenerate
     assert np.all(np.abs(_error(result, truth)) < [0.005, 0.002, 0.002])
 
 
@@ -89,7 +89,7 @@ def test_a_scan_without_overlap_is_refused():
     source = prepare_source(elsewhere.points, CONFIG, elsewhere.range_sigma)
     prior = Prior(se2_to_pose(2.3, 0.0, 0.0), NOISE.odometry_covariance(se2_to_pose(0.3, 0, 0)))
     result = register_scan(source, local_map, prior, 0.1, CONFIG)
-    assert result.status is Status.NO_OVERLAP and not result.ok
+    assert result.status is RegistrationStatus.NO_OVERLAP and not result.ok
     np.testing.assert_array_equal(result.pose, prior.pose)
     with pytest.raises(RegistrationError, match="no_overlap"):
         result.raise_for_status()
@@ -100,7 +100,7 @@ def test_large_initial_error_is_recovered():
     truth = (0.3, -0.2, 0.4)
     guess = (0.3 + 0.3 * np.cos(1.0), -0.2 + 0.3 * np.sin(1.0), 0.4 + np.deg2rad(20))
     result, _ = _register(office(), [(0.0, 0.0, 0.3), (0.15, -0.1, 0.35)], truth, guess, rng)
-    assert result.status is Status.OK and result.recovered
+    assert result.status is RegistrationStatus.OK and result.recovered
     assert np.all(np.abs(_error(result, truth)) < [0.005, 0.005, 0.002])
 
 
@@ -109,7 +109,7 @@ def test_symmetric_room_keeps_the_nearest_solution():
     truth = (0.2, -0.1, 0.1)
     result, _ = _register(square_room(4.0), [(0.0, 0.0, 0.0)], truth, (0.27, -0.04, 0.17),
                           rng)
-    assert result.status is Status.OK
+    assert result.status is RegistrationStatus.OK
     assert np.all(np.abs(_error(result, truth)) < [0.005, 0.005, 0.002])
 
 
@@ -117,7 +117,7 @@ def test_round_room_rotation_is_degenerate_and_taken_from_odometry():
     rng = np.random.default_rng(15)
     truth, guess = (0.2, 0.1, 0.3), (0.23, 0.08, 0.33)
     result, prior = _register(round_room(2.5), [(0.0, 0.0, 0.0)], truth, guess, rng)
-    assert result.status is Status.OK and result.degenerate
+    assert result.status is RegistrationStatus.OK and result.degenerate
     (direction,) = result.degenerate_directions
     # The symmetry: turning about the room's centre, i.e. in the body frame a yaw rate 1
     # with the velocity of the robot's origin on that circle.
@@ -174,7 +174,7 @@ def test_a_scan_of_ten_points_is_too_few():
     odometry.register(scans[0])
     tiny = scans[1].select(np.arange(10))
     result = odometry.register(tiny)
-    assert result.status is Status.TOO_FEW_POINTS and result.num_points <= 10
+    assert result.status is RegistrationStatus.TOO_FEW_POINTS and result.num_points <= 10
     np.testing.assert_allclose(pose_to_se2(result.pose), (0.21, 0, 0), atol=1e-12)  # prior
     with pytest.raises(RegistrationError, match="too_few_points"):
         result.raise_for_status()
@@ -202,7 +202,7 @@ def test_identical_consecutive_scans_do_not_move():
     odometry = ScanOdometry(initial_pose=se2_to_pose(0.5, 0.2, 1.0))
     first = odometry.register(scan)
     second = odometry.register(scan)
-    assert first.status is Status.INITIALISED and second.status is Status.OK
+    assert first.status is RegistrationStatus.INITIALISED and second.status is RegistrationStatus.OK
     assert second.fitness > 0.9 and not second.degenerate
     motion = pose_to_se2(invert_pose(first.pose) @ second.pose)
     assert np.all(np.abs(motion) < [1e-3, 1e-3, 1e-3])
@@ -225,7 +225,7 @@ def test_full_se3_mode_uses_the_floor_for_height_roll_and_pitch():
     guess = truth @ pose_exp(np.array([0.02, -0.01, 0.03, 0.01, -0.015, 0.01]))
     prior = Prior(guess, np.diag(np.square([0.05, 0.05, 0.05, 0.05, 0.05, 0.05])))
     result = register_scan(source, local_map, prior, 0.1, config)
-    assert result.status is Status.OK and not result.degenerate
+    assert result.status is RegistrationStatus.OK and not result.degenerate
     error = between(truth, result.pose)
     assert np.all(np.abs(error[:3]) < 0.003) and np.all(np.abs(error[3:]) < 0.002)
     assert np.all(np.diag(result.covariance) > 0)  # all six estimated

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanmap.carmen import read_carmen
-from scanmap.registration import RegistrationConfig, ScanOdometry, Status
-from scanmap.trajectory import ate_rmse, relative_errors
+from scanmap.datasets.carmen import read_carmen
+from scanmap.evaluation.trajectory_errors import ate_rmse, relative_errors
+from scanmap.registration import RegistrationConfig, RegistrationStatus, ScanOdometry
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose
 from tests.conftest import real_data
 from tests.scanmap.registration.scenes import (
@@ -76,8 +76,8 @@ def test_after_repeated_failures_the_map_restarts():
     elsewhere = [make_scan(square_room(3.0), (0.1 * i, 0.0, 0.0), rng, stamp=3.0 * (i + 1))
                  for i in range(4)]
     statuses = [registration.register(scan).status for scan in elsewhere]
-    assert statuses[:3] == [Status.NO_OVERLAP] * 3  # the third restarts the map from itself
-    assert statuses[3] is Status.OK
+    assert statuses[:3] == [RegistrationStatus.NO_OVERLAP] * 3  # the third restarts the map
+    assert statuses[3] is RegistrationStatus.OK
     # Failed scans keep their predicted (constant-velocity) poses, not invented ones.
     assert len(registration.poses) == 5
 

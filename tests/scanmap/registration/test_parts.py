@@ -8,7 +8,7 @@ import pytest
 
 from scanmap.registration import (
     LocalMap,
-    OdometryNoise,
+    OdometryNoiseConfig,
     Prior,
     RegistrationConfig,
     analyse_degeneracy,
@@ -56,7 +56,7 @@ def test_a_degenerate_mixed_direction_is_found_in_scaled_units():
 
 
 def test_odometry_noise_grows_with_motion():
-    noise = OdometryNoise()
+    noise = OdometryNoiseConfig()
     still = noise.odometry_covariance(np.eye(4))
     moved = noise.odometry_covariance(se2_to_pose(1.0, 0.0, 0.5))
     assert still[0, 0] == pytest.approx(noise.trans_floor ** 2)

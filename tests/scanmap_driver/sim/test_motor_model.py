@@ -12,12 +12,12 @@ from scanmap_driver.sim.motor_model import (
     HEADING_ABOVE,
     STEP,
     DcMotor,
-    MotorParameters,
+    MotorModelConfig,
     scan_motion,
 )
 
 
-def _reference_steps(params: MotorParameters, duty: float, noise: np.ndarray,
+def _reference_steps(params: MotorModelConfig, duty: float, noise: np.ndarray,
                      heading: float = 0.0, speed: float = 0.0, load: float = 0.0):
     """The motor's equations step by step in plain Python."""
     decay = math.exp(-STEP / params.load_time_constant)
@@ -43,7 +43,7 @@ def _reference_steps(params: MotorParameters, duty: float, noise: np.ndarray,
 
 
 def test_kernel_matches_the_reference():
-    params = MotorParameters()
+    params = MotorModelConfig()
     motor = DcMotor(params, np.random.default_rng(7))
     got = motor.advance(0.6, 0.5)
     noise = np.random.default_rng(7).standard_normal(500)
@@ -52,14 +52,14 @@ def test_kernel_matches_the_reference():
 
 
 def test_dead_band_holds_the_head_still():
-    motor = DcMotor(MotorParameters(), np.random.default_rng(0), heading=1.0)
+    motor = DcMotor(MotorModelConfig(), np.random.default_rng(0), heading=1.0)
     motor.advance(0.05, 1.0)
     assert motor.heading == 1.0 and motor.speed == 0.0
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_scan_turns_once_in_about_two_seconds_and_comes_back(seed):
-    params = MotorParameters()
+    params = MotorModelConfig()
     motion = scan_motion(params, np.random.default_rng(seed), start_heading=0.3)
     assert 1.8 < motion.capture_end < 2.4
     assert motion.heading_at(motion.capture_end) >= 0.3 + 2 * math.pi + math.radians(10)
@@ -76,13 +76,13 @@ def test_a_scan_turns_once_in_about_two_seconds_and_comes_back(seed):
 
 
 def test_a_stalled_motor_gives_up_after_the_limit():
-    stalled = MotorParameters(full_speed=0.0)
+    stalled = MotorModelConfig(full_speed=0.0)
     motion = scan_motion(stalled, np.random.default_rng(0), 0.0, limit=0.5)
     assert motion.capture_end == pytest.approx(0.5, abs=2 * STEP)
     assert motion.end_heading == 0.0
 
 
 def test_phase_end_condition():
-    motor = DcMotor(MotorParameters(), np.random.default_rng(3))
+    motor = DcMotor(MotorModelConfig(), np.random.default_rng(3))
     path = motor.run(0.7, False, HEADING_ABOVE, 1.0, 10_000)
     assert path[-1] >= 1.0 > path[-2]

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from scanmap_driver.sim.odometry import arc_poses, dense_arc, dense_drive, odometry_path
-from scanmap_driver.sim.scene import OdometryNoise
+from scanmap_driver.sim.scene import SimOdometryNoise
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose
 
-QUIET = OdometryNoise(0.0, 0.0, 0.0, 0.0, 0.0)
+QUIET = SimOdometryNoise(0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def _relative(path, start):
@@ -53,7 +53,7 @@ def test_arc_is_the_integrated_twist(speed, rate, t):
 
 def test_drift_grows_with_distance():
     path = dense_drive(np.zeros(3), np.array([20.0, 0.0, 0.0]))
-    noise = OdometryNoise(distance_sigma=0.01, heading_sigma=0.01, turn_sigma=0.0,
+    noise = SimOdometryNoise(distance_sigma=0.01, heading_sigma=0.01, turn_sigma=0.0,
                           distance_bias=0.0, heading_bias=0.0)
     errors_at = {5.0: [], 20.0: []}
     for seed in range(200):
@@ -68,6 +68,6 @@ def test_drift_grows_with_distance():
 
 def test_biases_are_systematic():
     path = dense_drive(np.zeros(3), np.array([10.0, 0.0, 0.0]))
-    noise = OdometryNoise(0.0, 0.0, 0.0, distance_bias=0.02, heading_bias=0.0)
+    noise = SimOdometryNoise(0.0, 0.0, 0.0, distance_bias=0.02, heading_bias=0.0)
     odom = odometry_path(path, noise, np.random.default_rng(0))
     assert odom[-1, 0] == pytest.approx(10.2, abs=1e-9)

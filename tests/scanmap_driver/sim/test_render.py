@@ -7,7 +7,7 @@ import pytest
 
 from scanmap_driver import reference_scanner, triangulate
 from scanmap_driver.sim import builtin_scene, plan_scans
-from scanmap_driver.sim.camera_effects import CameraSettings
+from scanmap_driver.sim.camera_effects import SimCameraConfig
 from scanmap_driver.sim.laser_stripe import head_poses, points_from_fan, project
 from scanmap_driver.sim.render import LIGHTING, LaserAppearance, Renderer
 from scanmap_driver.transforms import transform_points
@@ -81,7 +81,7 @@ def test_the_stripe_is_drawn_at_the_true_row(office):
     JPEG) it stays within a fraction of a pixel."""
     scene, plan = office
     assert plan.motion.heading_at(plan.frame_times[0]) == plan.motion.heading_at(0.0)
-    camera = CameraSettings(read_noise=0.0, full_well=1e12, exposure=0.004)
+    camera = SimCameraConfig(read_noise=0.0, full_well=1e12, exposure=0.004)
     renderer = Renderer(scene.with_ambient(0.0), MODEL, camera, LaserAppearance(speckle=0.0))
     light = renderer.light(plan, 0, np.random.default_rng(0))
     found = _centroids(light.laser, light.truth.stripe)
@@ -99,7 +99,7 @@ def test_the_stripe_is_drawn_at_the_true_row(office):
 
 def test_rolling_shutter_truth_uses_each_rows_heading(office):
     scene, plan = office
-    camera = CameraSettings(rolling_shutter=0.03)
+    camera = SimCameraConfig(rolling_shutter=0.03)
     truth = Renderer(scene, MODEL, camera).render(plan, 30, np.random.default_rng(1)).truth
     spread = truth.stripe.heading - truth.heading
     # rows 0..479 are read over 30 ms: at ~3 rad/s the headings span about 0.09 rad
@@ -138,7 +138,7 @@ def test_motion_blurs_the_scene_and_sweeps_the_laser_as_the_geometry_says():
     scene = builtin_scene("corridor").with_ambient(LIGHTING["bright"])
     plan = plan_scans(scene, MODEL, seed=0, count=1)[0]
     fastest = int(np.argmax(np.diff(plan.frame_headings)))
-    camera = CameraSettings(exposure=0.02)
+    camera = SimCameraConfig(exposure=0.02)
     renderer = Renderer(scene, MODEL, camera, LaserAppearance(speckle=0.0))
     still = renderer.light(plan, 0, np.random.default_rng(0))
     fast = renderer.light(plan, fastest, np.random.default_rng(0))

@@ -1,4 +1,4 @@
-"""`scanmap simulate`: a recording in the DESIGN.md format with ground truth, deterministic."""
+"""`scanmap simulate`: a recording in the documented format with ground truth, deterministic."""
 
 from __future__ import annotations
 

@@ -1,0 +1,54 @@
+"""The `scanmap` command line.
+
+Each subcommand lives in its own module under `scanmap.cli.commands` and defines
+`register(subparsers)`, which adds its parser and sets `func(args) -> int`. Modules are
+discovered, so adding a command never edits this file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from scanmap.cli import commands
+from scanmap_driver import ScanmapError, __version__
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser with every subcommand found in `scanmap.cli.commands`."""
+    parser = argparse.ArgumentParser(
+        prog="scanmap",
+        description="Mapping and obstacle avoidance with the inexpensive rotating "
+                    "laser-line 3D scanner.")
+    parser.add_argument("--version", action="version", version=f"scanmap {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the process exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except ScanmapError as exc:
+        print(f"scanmap: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("scanmap: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # output piped into `head` and closed early
+        sys.stderr.close()
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

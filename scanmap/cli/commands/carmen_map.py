@@ -1,0 +1,50 @@
+"""`scanmap carmen-map LOG --out DIR`: the occupancy map of a CARMEN log at its corrected poses.
+
+Writes DIR/<name>.yaml + .pgm (ROS map_server) and DIR/<name>.png (the same pixels).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import cv2
+
+from scanmap.datasets.carmen import read_carmen
+from scanmap.grid.height_grid import GridConfig
+from scanmap.io.map_files import read_pgm, save_ros_map
+from scanmap.navigation.costmap import occupancy_grid
+from scanmap.pipelines.carmen_map import carmen_segmentation, fuse_carmen
+from scanmap_driver.errors import MapError
+from scanmap_driver.files import atomic_path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add `carmen-map`."""
+    parser = subparsers.add_parser(
+        "carmen-map", help="occupancy map of a CARMEN laser log (corrected poses)",
+        description="Fuse every FLASER scan of a CARMEN log at its corrected pose into the "
+                    "grid and write the occupancy map as ROS map_server YAML + PGM, and PNG.")
+    parser.add_argument("log", type=Path, metavar="LOG", help="CARMEN log (.log or .log.gz)")
+    parser.add_argument("--out", required=True, type=Path, metavar="DIR")
+    parser.add_argument("--resolution", type=float, default=0.05, help="cell size (m)")
+    parser.add_argument("--height", type=float, default=0.3,
+                        help="height (m) given to the laser and its points")
+    parser.set_defaults(func=_carmen_map)
+
+
+def _carmen_map(args: argparse.Namespace) -> int:
+    log = read_carmen(args.log)
+    grid = fuse_carmen(log, GridConfig(resolution=args.resolution), height=args.height)
+    seg = carmen_segmentation(grid)
+    name = args.log.name.split(".")[0]
+    pgm = save_ros_map(args.out / f"{name}.yaml", occupancy_grid(seg), seg.resolution,
+                       seg.origin)
+    png = args.out / f"{name}.png"
+    with atomic_path(png) as tmp:
+        if not cv2.imwrite(str(tmp.with_suffix(".png")), read_pgm(pgm).astype("uint8")):
+            raise MapError(f"{png}: OpenCV could not write the PNG")
+        tmp.with_suffix(".png").replace(tmp)
+    print(f"{len(log)} scans of {args.log}: {seg.shape[1]} x {seg.shape[0]} cells at "
+          f"{seg.resolution} m; wrote {pgm.with_suffix('.yaml')}, {pgm} and {png}")
+    return 0

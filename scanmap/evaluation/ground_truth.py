@@ -1,0 +1,134 @@
+"""Errors of a mapping run against a simulator's ground truth (a recording's `ground_truth/`).
+
+* range: per measured point, its horizontal range from the scanner axis minus the true
+  range of the laser point on the same image column of the same frame (the column is
+  recovered by projecting the point back into the camera with its measured heading, so
+  heading errors do not leak in). `matched` is the fraction of true laser points measured.
+* heading: per frame, the decoded heading minus the true one (wrapped).
+* trajectory: ATE RMSE of the scan poses after SE(2) alignment (`trajectory.ate_rmse`).
+* map: obstacle cells against the truth raster, in the world frame (the map frame is
+  placed by the true pose of the first scan: where the robot started). Precision: the
+  map's obstacle cells within one cell of a true obstacle; recall: true obstacle cells
+  with a map obstacle within one cell, among those the map observed (an obstacle or
+  free there: unknown is no claim); coverage: the same over all true obstacle cells;
+  free precision: the map's free cells that are truly floor (the safety figure).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from scanmap.evaluation.trajectory_errors import ate_rmse
+from scanmap.navigation import floor
+from scanmap.navigation.floor import Segmentation
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner_model import ScannerModel
+from scanmap_driver.sim import RASTER_FLOOR, RASTER_OBSTACLE, ScanTruth, TruthRaster
+from scanmap_driver.transforms import invert_pose, transform_points, wrap_angle
+from scanmap_driver.triangulation import project_head_points
+
+
+def statistics(values: np.ndarray) -> dict[str, float]:
+    """count, mean, median, p95 and max of |values|, and the median signed value."""
+    values = np.asarray(values, dtype=np.float64)
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return {"count": 0}
+    magnitude = np.abs(values)
+    return {"count": int(values.size), "mean_abs": float(magnitude.mean()),
+            "median_abs": float(np.median(magnitude)),
+            "p95_abs": float(np.percentile(magnitude, 95)), "max_abs": float(magnitude.max()),
+            "median": float(np.median(values))}
+
+
+def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.ndarray, int]:
+    """Signed range error (m) of each matched point, and the number of true laser points."""
+    width = model.camera.width
+    primary = truth.laser["primary"].astype(bool)
+    true_key = (truth.laser["frame"][primary].astype(np.int64) * width
+                + np.rint(truth.laser["u"][primary]).astype(np.int64))
+    true_range = np.hypot(*truth.laser["base"][primary][:, :2].T)
+    order = np.argsort(true_key)
+    true_key, true_range = true_key[order], true_range[order]
+    errors = []
+    for frame in np.unique(scan.frame_index):
+        rows = scan.frame_index == frame
+        head = transform_points(invert_pose(model.head_pose(float(scan.heading[rows][0]))),
+                                scan.points[rows])
+        u = np.rint(project_head_points(model, head)[:, 0])
+        key = frame * width + np.nan_to_num(u, nan=-1.0).astype(np.int64)
+        at = np.clip(np.searchsorted(true_key, key), 0, max(len(true_key) - 1, 0))
+        found = (len(true_key) > 0) & (true_key[at] == key) & np.isfinite(u)
+        measured = np.hypot(scan.points[rows, 0], scan.points[rows, 1])
+        errors.append(measured[found] - true_range[at[found]])
+    return (np.concatenate(errors) if errors else np.zeros(0)), int(primary.sum())
+
+
+def heading_errors(scan: Scan, truth: ScanTruth) -> np.ndarray:
+    """Decoded minus true heading (rad, wrapped) of each frame that has points."""
+    frames, first = np.unique(scan.frame_index, return_index=True)
+    inside = frames < len(truth.frame_heading)
+    return wrap_angle(scan.heading[first[inside]] - truth.frame_heading[frames[inside]])
+
+
+def trajectory_errors(poses: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """ATE RMSE (m) after SE(2) alignment, and without alignment once the map is placed by
+    the first true pose (`map_to_world`): the error the map itself is drawn with."""
+    poses, reference = np.asarray(poses), np.asarray(reference)
+    anchored = map_to_world(poses, reference) @ poses
+    return {"count": len(poses), "ate_rmse": ate_rmse(poses, reference, "se2"),
+            "start_anchored_rmse": ate_rmse(anchored, reference, "none")}
+
+
+def map_to_world(poses: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """The map frame in the world: placed by the true pose of the first scan."""
+    return reference[0] @ invert_pose(poses[0])
+
+
+def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray
+               ) -> dict[str, float]:
+    """Obstacle precision, recall, F1, coverage and free precision (module docstring)."""
+    ny, nx = seg.shape
+    xs, ys = (seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution,
+              seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution)
+    gx, gy = np.meshgrid(xs, ys)
+    cells = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    in_world = transform_points(world_from_map, cells)
+    truth_class = _lookup(raster.classes, raster.origin, raster.resolution, in_world,
+                          -1).reshape(ny, nx)
+    near_truth = ndimage.binary_dilation(raster.classes == RASTER_OBSTACLE, np.ones((3, 3), bool))
+    near_truth_at = _lookup(near_truth, raster.origin, raster.resolution, in_world,
+                            False).reshape(ny, nx)
+    predicted = seg.state == floor.OBSTACLE
+    free = seg.state == floor.FREE
+    precision = float(near_truth_at[predicted].mean()) if predicted.any() else float("nan")
+
+    rows, cols = np.nonzero(raster.classes == RASTER_OBSTACLE)
+    true_cells = np.column_stack([raster.origin[0] + (cols + 0.5) * raster.resolution,
+                                  raster.origin[1] + (rows + 0.5) * raster.resolution,
+                                  np.zeros(rows.size)])
+    in_map = transform_points(invert_pose(world_from_map), true_cells)
+    near_map = ndimage.binary_dilation(predicted, np.ones((3, 3), bool))
+    detected = _lookup(near_map, seg.origin, seg.resolution, in_map, False)
+    observed = detected | _lookup(free, seg.origin, seg.resolution, in_map, False)
+    recall = float(detected[observed].mean()) if observed.any() else float("nan")
+    f1 = 2 * precision * recall / (precision + recall) if precision + recall > 0 else 0.0
+    return {"obstacle_precision": precision, "obstacle_recall": recall, "obstacle_f1": f1,
+            "obstacle_coverage": float(detected.mean()) if detected.size else float("nan"),
+            "free_precision": float((truth_class[free] == RASTER_FLOOR).mean()) if free.any()
+            else float("nan"),
+            "free_cells_on_obstacles": int((truth_class[free] == RASTER_OBSTACLE).sum()),
+            "band": list(raster.band)}
+
+
+def _lookup(values: np.ndarray, origin, resolution: float, points: np.ndarray,
+            fill) -> np.ndarray:
+    """values[row, col] of the cell under each point (x, y) of a grid whose cell [0, 0]
+    has its lower-left corner at origin; `fill` outside."""
+    cols = np.floor((points[:, 0] - origin[0]) / resolution).astype(np.int64)
+    rows = np.floor((points[:, 1] - origin[1]) / resolution).astype(np.int64)
+    inside = (rows >= 0) & (rows < values.shape[0]) & (cols >= 0) & (cols < values.shape[1])
+    out = np.full(len(points), fill, dtype=np.result_type(values.dtype, np.asarray(fill)))
+    out[inside] = values[rows[inside], cols[inside]]
+    return out

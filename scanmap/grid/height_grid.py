@@ -1,0 +1,446 @@
+"""The tiled 2.5D height/occupancy grid: what the robot needs to know about each cell.
+
+A cell (default 5 cm) holds up to K levels - occupied height intervals with clamped
+log-odds, hit and pass counts and the mean hit position inside the cell - plus the
+heights observed there (a 64-bit mask) and its last update time. Floor height and the
+obstacle layer are derived from these (`scanmap.navigation.floor`).
+
+Memory follows the area seen: the map is cut into square tiles (64 x 64 cells) that
+are allocated when a ray first crosses them, inside a configured maximum extent (a
+point beyond it is a MapError, never a huge allocation). With `window` set, the grid
+keeps only the tiles near the robot (`recenter`), and rays leaving the window are
+dropped. Insertion runs in Numba without the GIL; a lock makes each insertion, copy
+and window extraction atomic with respect to the others.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from scanmap.grid import _kernels as gk
+from scanmap_driver.errors import MapError
+
+POOL_NAMES = ("lev_f", "lev_n", "lev_flag", "nlev", "cells")
+SAVED_CELL_FIELDS = 2  # observed mask and scan id; the ray-bundle scratch is not saved
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """Geometry and sensor model of a grid.
+
+    resolution: cell side (m). tile_cells: cells per tile side (a power of 2).
+    levels: K, the most height intervals a cell keeps. extent: half side (m) of the
+    square around the map origin that the grid may cover. window: side (m) of the
+    rolling window around the robot, or None for a map that keeps everything seen.
+    z_min, mask_dz: bottom and bin height of the 64-bin observed-height mask.
+    merge_gap: hits closer than this in height join one level (m).
+    clear_margin: the last metres of a ray before its hit clear nothing.
+    protect: a level hit in a scan keeps, in that scan, the space within this height of
+    its hits from being cleared (m).
+    max_range: rays longer than this are dropped (m).
+    l_hit, l_miss, l_max: log-odds added per hit and removed per pass (once per scan and
+    at most `max_misses` times per scan, respectively), and the clamp.
+    bundle_run: a ray stops after this many cells in a row already updated by a ray from
+    the same origin (0: trace every ray to its origin; see grid_kernels).
+    """
+
+    resolution: float = 0.05
+    tile_cells: int = 64
+    levels: int = 3
+    extent: float = 1000.0
+    window: float | None = None
+    z_min: float = -0.35
+    mask_dz: float = 0.025
+    merge_gap: float = 0.10
+    clear_margin: float = 0.1
+    protect: float = 0.05
+    max_range: float = 20.0
+    l_hit: float = 0.85
+    l_miss: float = 0.4
+    l_max: float = 3.5
+    max_misses: int = 5
+    bundle_run: int = 3
+
+    def __post_init__(self) -> None:
+        positive = ("resolution", "extent", "mask_dz", "merge_gap", "max_range", "l_hit",
+                    "l_miss", "l_max")
+        for name in positive:
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise MapError(f"GridConfig.{name}: expected a finite number > 0, got {value!r}")
+        for name in ("clear_margin", "protect"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise MapError(f"GridConfig.{name}: expected a finite number >= 0, got {value!r}")
+        if not math.isfinite(self.z_min):
+            raise MapError(f"GridConfig.z_min: expected a finite number, got {self.z_min!r}")
+        t = self.tile_cells
+        if not (isinstance(t, int) and 8 <= t <= 1024 and t & (t - 1) == 0):
+            raise MapError(f"GridConfig.tile_cells: expected a power of 2 in 8..1024, got {t!r}")
+        if not (isinstance(self.levels, int) and 1 <= self.levels <= 16):
+            raise MapError(f"GridConfig.levels: expected an integer 1..16, got {self.levels!r}")
+        if not (isinstance(self.bundle_run, int) and self.bundle_run >= 0):
+            raise MapError(f"GridConfig.bundle_run: expected an integer >= 0, "
+                           f"got {self.bundle_run!r}")
+        if not (isinstance(self.max_misses, int) and 1 <= self.max_misses <= 127):
+            raise MapError(f"GridConfig.max_misses: expected 1..127, got {self.max_misses!r}")
+        if self.window is not None and not (math.isfinite(self.window)
+                                            and 0 < self.window <= 2 * self.extent):
+            raise MapError(f"GridConfig.window: expected None or 0 < window <= 2*extent, "
+                           f"got {self.window!r}")
+        if self.tiles_per_side > 8192:
+            raise MapError(f"GridConfig.extent: {self.extent} m needs {self.tiles_per_side} "
+                           "tiles per side (max 8192); use larger tiles or cells")
+
+    @property
+    def tile_size(self) -> float:
+        """Tile side in metres."""
+        return self.tile_cells * self.resolution
+
+    @property
+    def tiles_per_side(self) -> int:
+        """Tiles along each side of the extent."""
+        return math.ceil(2.0 * self.extent / self.tile_size)
+
+    @property
+    def corner(self) -> float:
+        """x and y (m) of the lower-left corner of tile (0, 0)."""
+        return -0.5 * self.tiles_per_side * self.tile_size
+
+    def to_dict(self) -> dict:
+        """Plain values, for map files."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class InsertStats:
+    """What one insertion did: rays used, skipped and why, levels cleared, tiles allocated."""
+
+    inserted: int
+    nonfinite: int
+    outside_window: int
+    too_far: int
+    cleared: int
+    new_tiles: int
+
+
+@dataclass(frozen=True, eq=False)
+class CellLayers:
+    """Dense copy of a rectangular window of the grid, row = y, column = x.
+
+    origin: (x, y) of the lower-left corner of cell [0, 0]. levels: (ny, nx, K, 5)
+    float32 records (lo, hi, log-odds, mean hit x and y offset from the cell centre);
+    counts: (ny, nx, K, 2) uint32 (hits, passes); nlev: levels in use; seen: observed
+    height mask; updated: last update time (NaN where never updated).
+    """
+
+    origin: tuple[float, float]
+    resolution: float
+    z_min: float
+    mask_dz: float
+    levels: np.ndarray
+    counts: np.ndarray
+    nlev: np.ndarray
+    seen: np.ndarray
+    updated: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx)."""
+        return tuple(self.nlev.shape)
+
+    def cell_centers(self) -> tuple[np.ndarray, np.ndarray]:
+        """x (nx,) and y (ny,) of the cell centres."""
+        ny, nx = self.shape
+        r = self.resolution
+        return (self.origin[0] + (np.arange(nx) + 0.5) * r,
+                self.origin[1] + (np.arange(ny) + 0.5) * r)
+
+    def occupied_mask(self, z_low: np.ndarray | float, z_high: np.ndarray | float) -> np.ndarray:
+        """Cells with a level overlapping the open band (z_low, z_high) (per cell or scalar)."""
+        k = np.arange(self.levels.shape[2])
+        used = k[None, None, :] < self.nlev[..., None]
+        lo, hi = self.levels[..., gk.LO], self.levels[..., gk.HI]
+        low = np.asarray(z_low, dtype=np.float64)[..., None] if np.ndim(z_low) else z_low
+        high = np.asarray(z_high, dtype=np.float64)[..., None] if np.ndim(z_high) else z_high
+        return (used & (hi > low) & (lo < high)).any(axis=2)
+
+
+class HeightGrid:
+    """The 2.5D grid. Thread-safe: insert, copy and layers never interleave."""
+
+    def __init__(self, config: GridConfig | None = None) -> None:
+        self.config = config or GridConfig()
+        c = self.config
+        n = c.tiles_per_side
+        self._tile_index = np.full((n, n), -1, np.int32)
+        self._coords = np.zeros((0, 2), np.int64)  # (ty, tx) of each slot, -1 when free
+        self._free: list[int] = []
+        self._lock = threading.Lock()
+        self.stamp = math.nan  # time of the newest insertion
+        self._window_origin: tuple[float, float] | None = None
+        self._scan_times = [math.nan]  # time of each scan id; id 0 = never
+        cells, levels = c.tile_cells ** 2, c.tile_cells ** 2 * c.levels
+        self._lev_f = np.zeros((0, levels, gk.N_FLOAT_FIELDS), np.float32)
+        self._lev_n = np.zeros((0, levels, gk.N_INT_FIELDS), np.uint32)
+        self._lev_flag = np.zeros((0, levels), np.uint8)
+        self._nlev = np.zeros((0, cells), np.uint8)
+        self._cells = np.zeros((0, cells, gk.N_CELL_FIELDS), np.uint64)
+        self._ray_key = 0  # last ray-bundle key used
+        self._fp = np.array([c.resolution, c.corner, c.corner, c.z_min, c.mask_dz, c.merge_gap,
+                             c.clear_margin, c.l_hit, c.l_miss, c.l_max, c.protect], np.float64)
+        self._shift = c.tile_cells.bit_length() - 1
+
+    # -- tiles -------------------------------------------------------------------------
+    @property
+    def tile_count(self) -> int:
+        """Tiles currently allocated."""
+        return int((self._tile_index >= 0).sum())
+
+    @property
+    def memory_bytes(self) -> int:
+        """Bytes held by the tile pools and the tile index."""
+        return int(sum(a.nbytes for a in self._pools()) + self._tile_index.nbytes)
+
+    def _pools(self) -> tuple[np.ndarray, ...]:
+        return (self._lev_f, self._lev_n, self._lev_flag, self._nlev, self._cells)
+
+    def _set_pools(self, pools: list[np.ndarray]) -> None:
+        self._lev_f, self._lev_n, self._lev_flag, self._nlev, self._cells = pools
+
+    def _flat_pools(self) -> tuple[np.ndarray, ...]:
+        """The pools as the kernels address them: one record per level or cell."""
+        return (self._lev_f.reshape(-1, gk.N_FLOAT_FIELDS),
+                self._lev_n.reshape(-1, gk.N_INT_FIELDS), self._lev_flag.reshape(-1),
+                self._nlev.reshape(-1), self._cells.reshape(-1, gk.N_CELL_FIELDS))
+
+    def _allocate(self, tiles: np.ndarray) -> None:
+        """Give each (ty, tx) in `tiles` an empty slot, growing the pools by doubling."""
+        need = len(tiles) - len(self._free)
+        if need > 0:
+            old = len(self._coords)
+            new_cap = max(2 * old, old + need, 4)
+            pools = []
+            for a in self._pools():
+                grown = np.zeros((new_cap, *a.shape[1:]), a.dtype)
+                grown[:old] = a
+                pools.append(grown)
+            self._set_pools(pools)
+            self._coords = np.vstack([self._coords, np.full((new_cap - old, 2), -1, np.int64)])
+            self._free.extend(range(new_cap - 1, old - 1, -1))
+        for ty, tx in tiles:
+            slot = self._free.pop()
+            self._nlev[slot] = 0
+            self._cells[slot] = 0
+            self._coords[slot] = (ty, tx)
+            self._tile_index[ty, tx] = slot
+
+    def _release(self, slot: int) -> None:
+        ty, tx = self._coords[slot]
+        self._tile_index[ty, tx] = -1
+        self._coords[slot] = -1
+        self._free.append(slot)
+
+    # -- rolling window ----------------------------------------------------------------
+    def _window_bounds(self) -> np.ndarray:
+        c = self.config
+        lo, hi = c.corner, c.corner + c.tiles_per_side * c.tile_size
+        if c.window is None:
+            return np.array([lo, lo, hi, hi])
+        if self._window_origin is None:
+            raise MapError("HeightGrid: a rolling-window grid needs recenter(x, y) before insert")
+        x, y = self._window_origin
+        return np.array([x, y, x + c.window, y + c.window])
+
+    def recenter(self, x: float, y: float) -> None:
+        """Move the rolling window to be centred on (x, y) (snapped to tiles); drop far tiles."""
+        c = self.config
+        if c.window is None:
+            raise MapError("HeightGrid.recenter: this grid has no rolling window (config.window)")
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise MapError(f"HeightGrid.recenter: position ({x}, {y}) is not finite")
+        half = 0.5 * c.window
+        ts = c.tile_size
+        left = math.floor((x - half - c.corner) / ts) * ts + c.corner
+        bottom = math.floor((y - half - c.corner) / ts) * ts + c.corner
+        limit = c.corner + c.tiles_per_side * ts
+        if left < c.corner or bottom < c.corner or left + c.window > limit \
+                or bottom + c.window > limit:
+            raise MapError(f"HeightGrid.recenter: window at ({x:.1f}, {y:.1f}) leaves the "
+                           f"configured extent +-{c.extent} m")
+        with self._lock:
+            self._window_origin = (left, bottom)
+            for slot, (ty, tx) in enumerate(self._coords):
+                if ty < 0:
+                    continue
+                tx0, ty0 = c.corner + tx * ts, c.corner + ty * ts
+                if tx0 + ts <= left or tx0 >= left + c.window or ty0 + ts <= bottom \
+                        or ty0 >= bottom + c.window:
+                    self._release(slot)
+
+    # -- insertion ---------------------------------------------------------------------
+    def insert(self, points: np.ndarray, origins: np.ndarray, stamp: float) -> InsertStats:
+        """Fuse one scan: points (N, 3) in map, ray origins (N, 3) or one (3,), time (s).
+
+        Non-finite rays are skipped; a point or origin beyond the configured extent
+        raises MapError before anything changes.
+        """
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise MapError(f"HeightGrid.insert: points must be (N, 3), got {points.shape}")
+        origins = np.asarray(origins, dtype=np.float64)
+        if origins.shape == (3,):
+            origins = np.broadcast_to(origins, points.shape)
+        if origins.shape != points.shape:
+            raise MapError(f"HeightGrid.insert: origins must be (3,) or {points.shape}, "
+                           f"got {origins.shape}")
+        origins = np.ascontiguousarray(origins)
+        if not math.isfinite(stamp):
+            raise MapError(f"HeightGrid.insert: stamp must be finite, got {stamp}")
+        c = self.config
+        with self._lock:
+            window = self._window_bounds()
+            span = c.corner + c.tiles_per_side * c.tile_size
+            bounds = np.array([c.corner, c.corner, span, span])
+            cls = gk.classify_points(points, origins, bounds, window, c.max_range)
+            outside = cls == gk.POINT_OUTSIDE_EXTENT
+            if outside.any():
+                i = int(np.argmax(outside))
+                raise MapError(
+                    f"HeightGrid.insert: {int(outside.sum())} ray(s) leave the configured "
+                    f"extent +-{c.extent} m (e.g. point {points[i].tolist()} from origin "
+                    f"{origins[i].tolist()}); nothing was inserted")
+            new_tiles = 0
+            buffer = np.empty((256, 2), np.int64)
+            while True:
+                count = gk.collect_missing_tiles(points, origins, cls, self._tile_index,
+                                                 c.resolution, c.tile_cells, c.corner,
+                                                 c.corner, buffer)
+                found = buffer if count < 0 else buffer[:count]
+                self._allocate(found)
+                new_tiles += len(found)
+                if count >= 0:
+                    break
+            self._scan_times.append(float(stamp))
+            ip = np.array([self._shift, c.levels, c.max_misses, len(self._scan_times) - 1,
+                           self._ray_key, c.bundle_run], np.int64)
+            hits, cleared, self._ray_key = gk.insert_scan(points, origins, cls,
+                                                          self._tile_index,
+                                                          *self._flat_pools(), self._fp, ip)
+            self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
+        counts = np.bincount(cls, minlength=5)
+        return InsertStats(inserted=hits, nonfinite=int(counts[gk.POINT_NONFINITE]),
+                           outside_window=int(counts[gk.POINT_OUTSIDE_WINDOW]),
+                           too_far=int(counts[gk.POINT_TOO_FAR]), cleared=cleared,
+                           new_tiles=new_tiles)
+
+    # -- reading -----------------------------------------------------------------------
+    def bounds(self) -> tuple[float, float, float, float] | None:
+        """(xmin, ymin, xmax, ymax) of the allocated tiles, or None when empty."""
+        used = self._coords[self._coords[:, 0] >= 0]
+        if not len(used):
+            return None
+        c = self.config
+        lo, hi = used.min(axis=0), used.max(axis=0) + 1
+        return (c.corner + lo[1] * c.tile_size, c.corner + lo[0] * c.tile_size,
+                c.corner + hi[1] * c.tile_size, c.corner + hi[0] * c.tile_size)
+
+    def layers(self, bounds: tuple[float, float, float, float] | None = None) -> CellLayers:
+        """Dense copy of the cells inside bounds (xmin, ymin, xmax, ymax), snapped to cells.
+
+        Defaults to the allocated tiles (or the rolling window); absent tiles are unknown.
+        """
+        c = self.config
+        with self._lock:
+            if bounds is None:
+                if c.window is not None and self._window_origin is not None:
+                    x, y = self._window_origin
+                    bounds = (x, y, x + c.window, y + c.window)
+                else:
+                    bounds = self.bounds() or (0.0, 0.0, c.resolution, c.resolution)
+            xmin, ymin, xmax, ymax = map(float, bounds)
+            if not (xmax > xmin and ymax > ymin and all(map(math.isfinite, bounds))):
+                raise MapError(f"HeightGrid.layers: bad bounds {bounds}")
+            ix0 = math.floor((xmin - c.corner) / c.resolution)
+            iy0 = math.floor((ymin - c.corner) / c.resolution)
+            nx = math.ceil((xmax - c.corner) / c.resolution) - ix0
+            ny = math.ceil((ymax - c.corner) / c.resolution) - iy0
+            if nx * ny > 50_000_000:
+                raise MapError(f"HeightGrid.layers: window of {nx} x {ny} cells is too large")
+            k = c.levels
+            out_f = np.zeros((ny, nx, k, gk.N_FLOAT_FIELDS), np.float32)
+            out_n = np.zeros((ny, nx, k, 2), np.uint32)
+            out_nlev = np.zeros((ny, nx), np.uint8)
+            out_seen = np.zeros((ny, nx), np.uint64)
+            out_scan = np.zeros((ny, nx), np.uint64)
+            lev_f, lev_n, _, nlev, cells = self._flat_pools()
+            gk.extract_window(self._tile_index, lev_f, lev_n, nlev, cells, self._shift, k,
+                              ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan)
+            out_updated = np.asarray(self._scan_times)[out_scan]
+        origin = (round(c.corner + ix0 * c.resolution, 9), round(c.corner + iy0 * c.resolution, 9))
+        return CellLayers(origin=origin,
+                          resolution=c.resolution, z_min=c.z_min, mask_dz=c.mask_dz,
+                          levels=out_f, counts=out_n, nlev=out_nlev, seen=out_seen,
+                          updated=out_updated)
+
+    # -- whole-state copy (map files) --------------------------------------------------
+    def state(self) -> dict[str, np.ndarray]:
+        """A consistent copy of everything the grid holds, with used tiles only."""
+        with self._lock:
+            used = np.flatnonzero(self._coords[:, 0] >= 0)
+            out = {"tile_coords": self._coords[used].copy(),
+                   "scan_times": np.array(self._scan_times, np.float64),
+                   "stamp": np.array(self.stamp, np.float64)}
+            for name, pool in zip(POOL_NAMES, self._pools(), strict=True):
+                out[name] = pool[used]
+            out["cells"] = out["cells"][..., :SAVED_CELL_FIELDS].copy()  # not the scratch
+            if self._window_origin is not None:
+                out["window_origin"] = np.array(self._window_origin, np.float64)
+        return out
+
+    @classmethod
+    def from_state(cls, config: GridConfig, state: dict[str, np.ndarray],
+                   source: str = "map") -> HeightGrid:
+        """Rebuild a grid from `state()`; MapError names `source` and the bad array."""
+        grid = cls(config)
+        coords = np.asarray(state["tile_coords"])
+        n = len(coords) if coords.ndim == 2 and coords.shape[1] == 2 else -1
+        cells = config.tile_cells ** 2
+        levels = cells * config.levels
+        expected = dict(zip(POOL_NAMES, [
+            ((n, levels, gk.N_FLOAT_FIELDS), np.float32), ((n, levels, gk.N_INT_FIELDS), np.uint32),
+            ((n, levels), np.uint8), ((n, cells), np.uint8),
+            ((n, cells, SAVED_CELL_FIELDS), np.uint64)],
+            strict=True))
+        if n < 0 or coords.dtype.kind not in "iu":
+            raise MapError(f"{source}: tile_coords must be an (n, 2) integer array, "
+                           f"got {coords.dtype} {coords.shape}")
+        for name, (shape, dtype) in expected.items():
+            a = np.asarray(state[name])
+            if a.shape != shape or a.dtype != dtype:
+                raise MapError(f"{source}: {name} must be {np.dtype(dtype)} {shape}, "
+                               f"got {a.dtype} {a.shape}")
+        side = config.tiles_per_side
+        if n and (coords.min() < 0 or coords.max() >= side
+                  or len(np.unique(coords, axis=0)) != n):
+            raise MapError(f"{source}: tile_coords outside 0..{side - 1} or repeated")
+        if (np.asarray(state["nlev"]) > config.levels).any():
+            raise MapError(f"{source}: nlev exceeds the {config.levels} levels of the "
+                           "configuration")
+        times = np.asarray(state["scan_times"], np.float64)
+        scan_ids = np.asarray(state["cells"])[..., gk.SCAN]
+        if times.ndim != 1 or not len(times) or (n and scan_ids.max() >= len(times)):
+            raise MapError(f"{source}: scan_times does not cover the scan ids of the cells")
+        grid._allocate(coords)  # slot i holds tile coords[i]
+        for name, pool in zip(POOL_NAMES, grid._pools(), strict=True):
+            saved = np.asarray(state[name])
+            pool[:n, ..., :saved.shape[-1]] = saved
+        grid._scan_times = times.tolist()
+        grid.stamp = float(state["stamp"])
+        if "window_origin" in state:
+            grid._window_origin = tuple(map(float, state["window_origin"]))
+        return grid

@@ -1,0 +1,283 @@
+"""The Mapper: scans in; a registered, fused map and a current obstacle field out.
+
+Per scan (`add`): register it against the local map of the previous scans
+(`ScanOdometry`: odometry prior, de-skew, degeneracy), fuse its rays into the 2.5D grid
+- each ray from the camera centre of its frame, at the pose of its frame, since the
+robot may move during a 2 s scan (`scan_motion`) - and publish a new obstacle snapshot
+around the robot (`ObstacleMap`), so a controller polling from another thread always
+reads the newest consistent map. A scan whose registration failed is recorded in the
+trajectory with its predicted pose but not fused: a smeared map is worse than a stale
+one, and a stale obstacle field says so.
+
+Scans come live from the `Scanner` (`start(ContinuousScanning(...))`: a background
+thread, `mapping_thread`), from a recording or from processed scan files
+(`scan_input.ScanSource`, offline at full speed: `map_scans`). `save` writes the whole
+map to one `.npz` (`mapper_file`); `Mapper.load` reads it and resumes mapping: the next
+scan registers against the points the robot saw last.
+
+Clocks: obstacle queries are STALE when the newest scan is older than `max_age` by the
+mapper's clock: `time.monotonic` by default (the live scanner's clock); `offline=True`
+uses the data's own time (that of the obstacle field being read), for maps built from
+files.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import os
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from scanmap.grid.height_grid import HeightGrid, InsertStats
+from scanmap.grid.rays import scan_rays
+from scanmap.io.trajectory import Trajectory
+from scanmap.mapping.config import MapperConfig
+from scanmap.mapping.scan_motion import frame_poses
+from scanmap.mapping.state_file import MapperState, load_state, save_state
+from scanmap.mapping.thread import MappingThread
+from scanmap.mapping.warm_up import warm_up
+from scanmap.navigation.floor import Segmentation, segment
+from scanmap.navigation.obstacles import ObstacleMap
+from scanmap.registration import RegistrationResult, ScanOdometry
+from scanmap.stage_clock import StageClock
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner_model import ScannerModel, reference_scanner
+from scanmap_driver.transforms import invert_pose, transform_points
+
+_NO_POSE = np.full((4, 4), np.nan)
+
+
+@dataclass(frozen=True, eq=False)
+class MapUpdate:
+    """What `Mapper.add` did with one scan.
+
+    pose: base_link in map at the scan's start; registration: the full result; fused:
+    whether its rays went into the grid; insert: the grid's account of them (None when not
+    fused); timing: wall and CPU seconds per stage ("register", "fuse", "obstacles").
+    """
+
+    index: int
+    stamp: float
+    pose: np.ndarray
+    registration: RegistrationResult
+    fused: bool
+    insert: InsertStats | None
+    timing: StageClock
+
+
+class Mapper:
+    """Registers and fuses scans; `obstacles` answers queries from any thread."""
+
+    def __init__(self, model: ScannerModel | None = None, config: MapperConfig | None = None,
+                 *, clock: Callable[[], float] = time.monotonic, offline: bool = False,
+                 initial_pose: np.ndarray | None = None) -> None:
+        self.model = model or reference_scanner()
+        self.config = config or MapperConfig()
+        c = self.config
+        self.grid = HeightGrid(c.grid)
+        self.registration = ScanOdometry(c.registration, c.noise, initial_pose)
+        self.obstacles = ObstacleMap(c.robot, c.max_age, clock=self._data_time if offline
+                                     else clock, floor_params=c.floor)
+        self._lock = threading.Lock()
+        self._stamps: list[float] = []
+        self._poses: list[np.ndarray] = []
+        self._index: list[int] = []
+        self._status: list[str] = []
+        self._odometry: list[np.ndarray] = []
+        self._recent: collections.deque[tuple[np.ndarray, np.ndarray]] = collections.deque(
+            maxlen=c.resume_scans)  # (points in map, range sigma) of the newest fused scans
+        self._kept: list[tuple[np.ndarray, np.ndarray]] = []  # overhead points, colours
+        self._position = (math.nan, math.nan)  # where the robot was at the newest scan
+
+    # -- mapping -------------------------------------------------------------------------
+    def add(self, scan: Scan) -> MapUpdate:
+        """Register, fuse and publish one scan (see the module docstring)."""
+        clock = StageClock()
+        with self._lock:
+            with clock.stage("register"):
+                result = self.registration.register(scan)
+            self._stamps.append(float(scan.stamp))
+            self._poses.append(result.pose)
+            self._index.append(int(scan.index))
+            self._status.append(result.status.value)
+            self._odometry.append(scan.odom_start if scan.has_odometry else _NO_POSE)
+            fused = result.ok and len(scan) > 0
+            stats = None
+            if fused:  # a MapError here (beyond the extent) leaves the pose recorded
+                with clock.stage("fuse"):
+                    stats = self._fuse(scan, result.pose)
+        if fused and self.config.update_obstacles:
+            with clock.stage("obstacles"):
+                self.obstacles.update(self.grid, self._obstacle_bounds())
+        return MapUpdate(int(scan.index), float(scan.stamp), result.pose, result, fused, stats,
+                         clock)
+
+    def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
+        poses = frame_poses(scan, pose)
+        points, origins = scan_rays(scan, self.model, poses)
+        last = poses if poses.ndim == 2 else poses[scan.frame_index.max()]
+        c = self.config
+        if c.grid.window is not None:
+            self.grid.recenter(float(last[0, 3]), float(last[1, 3]))
+        stats = self.grid.insert(points, origins, float(scan.time.max()))
+        self._position = (float(last[0, 3]), float(last[1, 3]))
+        self._recent.append((points, scan.range_sigma))
+        if c.keep_points is not None:
+            keep = _one_per_voxel(points, c.keep_points)
+            self._kept.append((points[keep].astype(np.float32), scan.colors[keep]))
+        return stats
+
+    def _obstacle_bounds(self) -> tuple[float, float, float, float] | None:
+        window = self.config.obstacle_window
+        if window is None:
+            return None
+        x, y = self._position
+        return (x - 0.5 * window, y - 0.5 * window, x + 0.5 * window, y + 0.5 * window)
+
+    def map_scans(self, scans: Iterable[Scan], progress: Callable[[MapUpdate], None] | None
+                  = None) -> list[MapUpdate]:
+        """Map scans in order, as fast as they come (items may also carry `.scan`)."""
+        updates = []
+        for item in scans:
+            updates.append(self.add(getattr(item, "scan", item)))
+            if progress:
+                progress(updates[-1])
+        return updates
+
+    def start(self, source: Iterable | None = None, capacity: int = 4) -> MappingThread:
+        """Map in a background thread: scans from `source` (a `ContinuousScanning`, any
+        iterable of scans) or pushed with `submit`. Returns the `MappingThread`."""
+        thread = MappingThread(self, source, capacity)
+        thread.start()
+        return thread
+
+    def warm_up(self) -> None:
+        """Compile every kernel now (`warm_up`), not on the first live scan."""
+        warm_up(Mapper(self.model, self.config, offline=True))
+
+    # -- reading -------------------------------------------------------------------------
+    def _data_time(self) -> float:
+        """Offline "now": the time of the obstacle field queries read (never stale)."""
+        snapshot = self.obstacles.snapshot
+        return self.grid.stamp if snapshot is None else snapshot.stamp
+
+    def __len__(self) -> int:
+        return len(self._stamps)
+
+    @property
+    def latest_pose(self) -> np.ndarray | None:
+        """base_link in map at the newest scan's start (None before the first scan)."""
+        poses = self._poses
+        return poses[-1] if poses else None
+
+    def trajectory(self) -> Trajectory:
+        """One pose per scan, in order: base_link in map when the scan started."""
+        with self._lock:
+            return Trajectory(np.array(self._stamps), np.array(self._poses).reshape(-1, 4, 4))
+
+    @property
+    def statuses(self) -> list[str]:
+        """Registration status of each scan (`registration.RegistrationStatus` values)."""
+        return list(self._status)
+
+    @property
+    def scan_indices(self) -> list[int]:
+        """Index of each mapped scan in its recording."""
+        return list(self._index)
+
+    def segment(self, bounds: tuple[float, float, float, float] | None = None) -> Segmentation:
+        """Floor and obstacle layers of the map (inside bounds; default all of it)."""
+        return segment(self.grid.layers(bounds), self.config.robot, self.config.floor)
+
+    def kept_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """The points kept for the overhead view (float32 (K, 3) in map, RGB (K, 3))."""
+        with self._lock:
+            return self._kept_points()
+
+    def _kept_points(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self._kept:
+            return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint8)
+        return (np.concatenate([p for p, _ in self._kept]),
+                np.concatenate([c for _, c in self._kept]))
+
+    # -- files ---------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str], segmentation: Segmentation | None = None
+             ) -> None:
+        """Write the whole map to one .npz, atomically; safe while mapping continues.
+
+        segmentation: derived obstacle/floor layers to store too (e.g. `segment()`).
+        """
+        with self._lock:
+            state = self._state()
+        save_state(path, state, segmentation)
+
+    def _state(self) -> MapperState:
+        last = self._poses[-1] if self._poses else np.eye(4)
+        to_base = invert_pose(last)
+        if self._recent:
+            resume = transform_points(to_base, np.concatenate([p for p, _ in self._recent]))
+            sigma = np.concatenate([s for _, s in self._recent])
+        else:
+            resume, sigma = np.zeros((0, 3)), np.zeros(0)
+        points, colours = self._kept_points()
+        return MapperState(
+            grid=self.grid, config=self.config, model=self.model,
+            stamps=np.array(self._stamps, np.float64),
+            poses=np.array(self._poses, np.float64).reshape(-1, 4, 4),
+            index=np.array(self._index, np.int64), status=np.array(self._status, str),
+            odometry=np.array(self._odometry, np.float64).reshape(-1, 4, 4),
+            resume_points=resume, resume_sigma=sigma, points=points, point_colors=colours)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], *, clock: Callable[[], float] = time.monotonic,
+             offline: bool = False,
+             config: MapperConfig | None = None) -> Mapper:
+        """A Mapper continuing the map saved at `path`.
+
+        The next scan registers against the newest scans saved with the map, with the
+        odometry of the last scan as the prior's reference: keep the robot's odometry
+        running between sessions (or give scans without odometry). config: replaces the
+        saved settings except the grid's.
+        """
+        state = load_state(path)
+        config = state.config if config is None else replace(config, grid=state.config.grid)
+        last = state.poses[-1] if len(state.poses) else None
+        mapper = cls(state.model, config, clock=clock, offline=offline, initial_pose=last)
+        mapper.grid = state.grid
+        mapper._stamps = state.stamps.tolist()
+        mapper._poses = list(state.poses)
+        mapper._index = state.index.tolist()
+        mapper._status = state.status.tolist()
+        mapper._odometry = list(state.odometry)
+        if len(state.points):
+            mapper._kept = [(state.points, state.point_colors)]
+        if last is not None and len(state.resume_points):
+            odometry = state.odometry[-1]
+            mapper.registration.register_points(
+                state.resume_points, stamp=float(state.stamps[-1]),
+                odometry=odometry if np.isfinite(odometry).all() else None,
+                range_sigma=state.resume_sigma)
+            mapper._recent.append((transform_points(last, state.resume_points),
+                                   state.resume_sigma))
+            mapper._position = (float(last[0, 3]), float(last[1, 3]))
+            if config.update_obstacles:
+                mapper.obstacles.update(mapper.grid, mapper._obstacle_bounds())
+        return mapper
+
+
+def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
+    """Indices of one finite point per occupied voxel (the first), in order."""
+    finite = np.flatnonzero(np.isfinite(points).all(axis=1))
+    if not finite.size:
+        return finite
+    cells = np.floor(points[finite] / voxel).astype(np.int64)
+    cells -= cells.min(axis=0)
+    key = np.ravel_multi_index(cells.T, cells.max(axis=0) + 1)  # within the grid's extent
+    _, first = np.unique(key, return_index=True)
+    return finite[np.sort(first)]
+

@@ -1,0 +1,568 @@
+"""Numba kernels of the navigation layers: floor segmentation, obstacle queries and the
+exact Euclidean distance transform. Called through `floor`, `obstacles` and
+`distance_field`; every kernel releases the GIL (`nogil`) so queries run beside mapping.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from scanmap.grid import _kernels as gk
+
+UNKNOWN, FREE, OBSTACLE = 0, 1, 2  # cell states of `Segmentation.state`
+
+
+@njit(cache=True, nogil=True)
+def _nearest_rows(features: np.ndarray, rows: np.ndarray) -> None:
+    """rows[y, x] = row of the feature nearest to (y, x) in column x, or -1 if none."""
+    ny, nx = features.shape
+    for x in range(nx):
+        rows[0, x] = 0 if features[0, x] else -1
+    for y in range(1, ny):
+        for x in range(nx):
+            rows[y, x] = y if features[y, x] else rows[y - 1, x]
+    for y in range(ny - 2, -1, -1):
+        for x in range(nx):
+            below = rows[y + 1, x]
+            if below >= 0 and (rows[y, x] < 0 or below - y < y - rows[y, x]):
+                rows[y, x] = below
+
+
+@njit(cache=True, nogil=True)
+def edt_kernel(features: np.ndarray, distance: np.ndarray, nearest: np.ndarray,
+               pad: int) -> None:
+    """Distance (cells, inf without features) and flat index of the nearest feature (-1)
+    in the array padded by `pad` cells on every side.
+
+    The envelope's breakpoints are kept as exact integer fractions (numerator and
+    positive denominator), so the pass needs no division and no rounding.
+    """
+    ny, nx = features.shape
+    width = nx + 2 * pad
+    rows = np.empty((ny, nx), np.int32)
+    _nearest_rows(features, rows)
+    v = np.empty(nx, np.int64)  # columns of the parabolas in the envelope
+    z_num = np.empty(nx + 1, np.int64)  # breakpoint k is z_num[k] / z_den[k]
+    z_den = np.empty(nx + 1, np.int64)
+    f = np.empty(nx, np.int64)  # squared distance down the column
+    for y in range(ny):
+        k = -1
+        for q in range(nx):
+            r = rows[y, q]
+            if r < 0:
+                continue
+            f[q] = (y - r) * (y - r)
+            if k < 0:
+                k = 0
+                v[0] = q
+                z_num[0], z_den[0] = -1, 0  # -inf
+                z_num[1], z_den[1] = 1, 0  # +inf
+                continue
+            while True:  # drop parabolas the new one hides: s <= z[k]
+                c = v[k]
+                num = (f[q] + q * q) - (f[c] + c * c)
+                den = 2 * (q - c)
+                if z_den[k] == 0 or num * z_den[k] > z_num[k] * den:
+                    break
+                k -= 1
+            k += 1
+            v[k] = q
+            z_num[k], z_den[k] = num, den
+            z_num[k + 1], z_den[k + 1] = 1, 0
+        if k < 0:
+            for q in range(nx):
+                distance[y, q] = np.inf
+                nearest[y, q] = -1
+            continue
+        k = 0
+        for q in range(nx):
+            while z_den[k + 1] != 0 and z_num[k + 1] < q * z_den[k + 1]:
+                k += 1
+            c = v[k]
+            distance[y, q] = np.sqrt((q - c) * (q - c) + f[c])
+            nearest[y, q] = (rows[y, c] + pad) * width + c + pad
+
+
+@njit(cache=True, nogil=True)
+def floor_candidates(levels: np.ndarray, nlev: np.ndarray, thickness: float,
+                     clearance: float) -> np.ndarray:
+    """Height of each cell's lowest level when it can be floor, else NaN: thin, and with
+    `clearance` of space above it (not the foot of a wall or box sharing the cell)."""
+    ny, nx = nlev.shape
+    out = np.full((ny, nx), np.nan, np.float32)
+    for y in range(ny):
+        for x in range(nx):
+            if nlev[y, x] > 0:
+                lo, hi = levels[y, x, 0, gk.LO], levels[y, x, 0, gk.HI]
+                if hi - lo <= thickness and (nlev[y, x] == 1
+                                             or levels[y, x, 1, gk.LO] - hi >= clearance):
+                    out[y, x] = 0.5 * (lo + hi)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float) -> np.ndarray:
+    """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step."""
+    ny, nx = heights.shape
+    inside = seeds.copy()
+    queue = np.empty(ny * nx, np.int64)
+    head, tail = 0, 0
+    for y in range(ny):
+        for x in range(nx):
+            if seeds[y, x]:
+                queue[tail] = y * nx + x
+                tail += 1
+    while head < tail:
+        i = queue[head]
+        head += 1
+        y, x = i // nx, i % nx
+        h = heights[y, x]
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                yy, xx = y + dy, x + dx
+                if 0 <= yy < ny and 0 <= xx < nx and not inside[yy, xx]:
+                    hh = heights[yy, xx]
+                    if abs(hh - h) <= max_step:  # False for NaN (no candidate)
+                        inside[yy, xx] = True
+                        queue[tail] = yy * nx + xx
+                        tail += 1
+    return inside
+
+
+@njit(cache=True, nogil=True)
+def _popcount(v: np.uint64) -> int:
+    count = 0
+    while v:
+        v &= v - np.uint64(1)
+        count += 1
+    return count
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _widen(mask: np.uint64) -> np.uint64:
+    """A surface seen as hits has a thickness nobody measured: widen it by two bins."""
+    one = np.uint64(1)
+    mask |= (mask << one) | (mask >> one)
+    return mask | (mask << one) | (mask >> one)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lowest_bit(bits: np.uint64) -> int:
+    """Index of the lowest set bit of a non-zero mask."""
+    low = 0
+    while not (bits >> np.uint64(low)) & np.uint64(1):
+        low += 1
+    return low
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _above_lowest_seen(seen: np.uint64) -> np.uint64:
+    """Heights above the lowest height seen: where a board that has free space seen under
+    it can continue unseen (under a table top), unlike heights below everything a cell
+    saw (the shadow behind a box, seen only over it)."""
+    if seen == 0:
+        return np.uint64(0)
+    low = _lowest_bit(seen)
+    return ~((np.uint64(2) << np.uint64(low)) - np.uint64(1)) if low < 63 else np.uint64(0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _below(bits: np.uint64, margin: int) -> np.uint64:
+    """The heights more than `margin` bins below the lowest height in `bits` (non-zero)."""
+    low = _lowest_bit(bits)
+    return (np.uint64(1) << np.uint64(low - margin)) - np.uint64(1) if low > margin \
+        else np.uint64(0)
+
+
+@njit(cache=True, nogil=True)
+def _plates(boards: np.ndarray, occupied: np.ndarray) -> np.ndarray:
+    """The boards (their heights, widened) that overhang: they continue sideways at the
+    same heights in at least two of the 8 neighbouring cells (a table top's rim does; a
+    stray piece of a wall face does not), and no neighbour holds anything more than two
+    bins below them (the side of a box under its top, the rest of a wall under a piece of
+    it that rays grazing the face left apart)."""
+    ny, nx = boards.shape
+    out = np.zeros((ny, nx), np.uint64)
+    for y in range(ny):
+        for x in range(nx):
+            if not boards[y, x]:
+                continue
+            below = _below(boards[y, x], 2)
+            count = 0
+            supported = False
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if (yy != y or xx != x) and boards[yy, xx] & boards[y, x]:
+                        count += 1
+                    supported |= occupied[yy, xx] & below != 0
+            if count >= 2 and not supported:
+                out[y, x] = _widen(boards[y, x])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _spread_overhangs(hanging: np.ndarray, gaps: np.ndarray, state: np.ndarray,
+                      reach: int) -> np.ndarray:
+    """Heights of overhanging obstacles carried up to `reach` cells into the cells around
+    them (8-neighbours) with gaps at those heights in what they saw: the top of a table
+    seen only at its rim covers the cells inside the rim."""
+    ny, nx = hanging.shape
+    spread = hanging.copy()
+    size = ny * nx * 4
+    queue = np.empty(size, np.int64)
+    depth = np.empty(size, np.int64)
+    head, tail = 0, 0
+    for y in range(ny):
+        for x in range(nx):
+            if hanging[y, x] and tail < size:
+                queue[tail], depth[tail] = y * nx + x, 0
+                tail += 1
+    while head < tail:
+        i, d = queue[head % size], depth[head % size]
+        head += 1
+        if d >= reach:
+            continue
+        y, x = i // nx, i % nx
+        for yy in range(max(y - 1, 0), min(y + 2, ny)):
+            for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                if state[yy, xx] == OBSTACLE:
+                    continue
+                add = spread[y, x] & gaps[yy, xx] & ~spread[yy, xx]
+                if add and tail - head < size:
+                    spread[yy, xx] |= add
+                    queue[tail % size], depth[tail % size] = yy * nx + xx, d + 1
+                    tail += 1
+    return spread
+
+
+@njit(cache=True, nogil=True)
+def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
+                  floor_height: np.ndarray, step: float, height: float, z_min: float,
+                  mask_dz: float, coverage: float,
+                  reach: int, thin: float, origin_x: float, origin_y: float, res: float,
+                  state: np.ndarray, points: np.ndarray, band_logodds: np.ndarray,
+                  covered: np.ndarray) -> None:
+    """UNKNOWN / FREE / OBSTACLE per cell, obstacle points and the band's highest log-odds;
+    `covered`: cells that may lie under an overhanging obstacle (see below).
+
+    Heights no ray saw anywhere in the window (above the camera) are left out: nothing
+    can be known there. A cell without anything in its band is FREE when rays saw at
+    least `coverage` of the band's height bins free, and none of the heights it has not
+    seen is suspect: within two bins of an obstacle in a neighbouring cell, or of an
+    overhanging board within `reach` cells through cells that have not seen those heights
+    either but saw lower ones. A board is the lowest level in its cell, at most `thin`
+    thick, with free space seen under it at least a bin below its lowest hit (a ray that
+    ends on a box's top marks only the heights above the hit), and `_plates` decides
+    whether it overhangs. A cell under a table top that rays reached only under the top
+    is thus not FREE, however much of the band they saw there.
+    """
+    ny, nx = nlev.shape
+    occupied = np.zeros((ny, nx), np.uint64)  # band heights held by obstacles, per cell
+    hanging = np.zeros((ny, nx), np.uint64)  # the same, of obstacles clear of the floor
+    unseen = np.zeros((ny, nx), np.uint64)
+    observable = np.uint64(0)  # heights some ray saw somewhere (not above the camera)
+    for y in range(ny):
+        for x in range(nx):
+            observable |= seen[y, x]
+    for y in range(ny):
+        for x in range(nx):
+            cx, cy = origin_x + (x + 0.5) * res, origin_y + (y + 0.5) * res
+            points[y, x, 0], points[y, x, 1] = cx, cy
+            band_logodds[y, x] = np.nan
+            f = floor_height[y, x]
+            state[y, x] = UNKNOWN
+            if np.isnan(f):
+                continue
+            low, high = f + step, f + height
+            band = gk.height_mask(low, high - 1e-6, z_min, mask_dz) & observable
+            unseen[y, x] = band & ~seen[y, x]
+            weight, sx, sy = 0.0, 0.0, 0.0
+            for k in range(nlev[y, x]):
+                lo, hi = levels[y, x, k, gk.LO], levels[y, x, k, gk.HI]
+                if hi > low and lo < high:
+                    bits = gk.height_mask(max(lo, low), min(hi, high), z_min, mask_dz)
+                    if lo > low and hi - lo <= thin and occupied[y, x] == 0 \
+                            and seen[y, x] & gk.height_mask(low, lo - mask_dz, z_min, mask_dz):
+                        hanging[y, x] |= bits  # a board with free space under it
+                    occupied[y, x] |= bits
+                    w = 1.0 + levels[y, x, k, gk.LOGODDS]
+                    weight += w
+                    sx += w * levels[y, x, k, gk.MX]
+                    sy += w * levels[y, x, k, gk.MY]
+                    lo_k = levels[y, x, k, gk.LOGODDS]
+                    if np.isnan(band_logodds[y, x]) or lo_k > band_logodds[y, x]:
+                        band_logodds[y, x] = lo_k
+            if weight > 0.0:
+                state[y, x] = OBSTACLE
+                points[y, x, 0], points[y, x, 1] = cx + sx / weight, cy + sy / weight
+    gaps = np.empty((ny, nx), np.uint64)
+    for y in range(ny):
+        for x in range(nx):
+            gaps[y, x] = unseen[y, x] & _above_lowest_seen(seen[y, x])
+    overhang = _spread_overhangs(_plates(hanging, occupied), gaps, state, reach)
+    for y in range(ny):
+        for x in range(nx):
+            f = floor_height[y, x]
+            if state[y, x] == OBSTACLE or np.isnan(f):
+                continue
+            band = gk.height_mask(f + step, f + height - 1e-6, z_min, mask_dz) & observable
+            suspect = overhang[y, x]
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    suspect |= _widen(occupied[yy, xx])
+            covered[y, x] = unseen[y, x] & overhang[y, x] != 0
+            if _popcount(band & seen[y, x]) >= max(coverage * _popcount(band), 1.0) \
+                    and unseen[y, x] & suspect == 0:
+                state[y, x] = FREE
+
+
+@njit(cache=True, nogil=True)
+def cell_boxes(state, points, geo) -> tuple[np.ndarray, np.ndarray]:
+    """What distances are measured to, one record per cell of the window grown by a border
+    of one cell (flat, row-major: cell (y, x) is record (y + 1) * (nx + 2) + x + 1), +inf
+    on the border and where there is nothing (a query's distance to it is infinite):
+    boxes (x lo, y lo, x hi, y hi) of the cells not known free (an obstacle cell's
+    measured point, an unknown cell's square), and the obstacle cells' points (x, y)."""
+    ny, nx = state.shape
+    width = nx + 2
+    boxes = np.full(((ny + 2) * width, 4), np.inf)
+    obstacle_points = np.full(((ny + 2) * width, 2), np.inf)
+    for y in range(ny):
+        for x in range(nx):
+            b = (y + 1) * width + x + 1
+            if state[y, x] == OBSTACLE:
+                boxes[b, 0] = boxes[b, 2] = obstacle_points[b, 0] = points[y, x, 0]
+                boxes[b, 1] = boxes[b, 3] = obstacle_points[b, 1] = points[y, x, 1]
+            elif state[y, x] == UNKNOWN:
+                boxes[b, 0] = geo[0] + x * geo[2]
+                boxes[b, 1] = geo[1] + y * geo[2]
+                boxes[b, 2] = boxes[b, 0] + geo[2]
+                boxes[b, 3] = boxes[b, 1] + geo[2]
+    return boxes, obstacle_points
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clamp(q: float, lo: float, hi: float) -> float:
+    return min(max(q, lo), hi)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _nearest_box(qx, qy, boxes, k, width):
+    """Squared distance from (qx, qy) to the nearest of the 3 x 3 boxes around record k
+    (never on the border), and that box's record (-1 when all are infinite). Compiles
+    to running minima, without branches to mispredict."""
+    best, arg = np.inf, -1
+    for dy in range(-1, 2):
+        for dx in range(-1, 2):
+            j = k + dy * width + dx
+            px = _clamp(qx, boxes[j, 0], boxes[j, 2]) - qx
+            py = _clamp(qy, boxes[j, 1], boxes[j, 3]) - qy
+            d = px * px + py * py
+            if d < best:
+                best, arg = d, j
+    return best, arg
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _nearest_point(qx, qy, points, k, width):
+    """`_nearest_box` for points (x, y): half the loads and no clamping."""
+    best, arg = np.inf, -1
+    for dy in range(-1, 2):
+        for dx in range(-1, 2):
+            j = k + dy * width + dx
+            px, py = points[j, 0] - qx, points[j, 1] - qy
+            d = px * px + py * py
+            if d < best:
+                best, arg = d, j
+    return best, arg
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _window_edge(qx, qy, ox, oy, xmax, ymax):
+    """Distance from (qx, qy), inside the window [ox, xmax) x [oy, ymax), to its edge."""
+    return min(qx - ox, xmax - qx, qy - oy, ymax - qy)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cell_of(qx, qy, ox, oy, inv, nx, ny):
+    """(column, row) of the window cell holding (qx, qy), or of the window's cell nearest
+    it, and whether the window holds it. inv: 1 / resolution."""
+    gx, gy = (qx - ox) * inv, (qy - oy) * inv
+    inside = 0.0 <= gx < nx and 0.0 <= gy < ny  # False for NaN
+    ix = min(max(int(min(max(gx, 0.0), nx - 1.0)), 0), nx - 1)
+    iy = min(max(int(min(max(gy, 0.0), ny - 1.0)), 0), ny - 1)
+    return ix, iy, inside
+
+
+@njit(cache=True, nogil=True)
+def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, boxes, points, geo):
+    """(clearance, kind of what limits it, obstacle distance, obstacle x, obstacle y).
+
+    The obstacle distance is to the nearest measured obstacle point, refined over the
+    3 x 3 cells around the obstacle field's nearest cell (from the window's nearest cell
+    when the query is outside it). The clearance is the distance to the nearest thing not
+    known free, refined likewise around the blocked field's nearest (0 in or beyond the
+    window's unknown or occupied cells), and never more than the obstacle distance (the
+    two refinements may settle on different cells).
+    """
+    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    width = nx + 2
+    ix, iy, inside = _cell_of(qx, qy, ox, oy, 1.0 / res, nx, ny)
+    d2, px, py = np.inf, qx, qy
+    k = nearest_obstacle[iy, ix]
+    if k >= 0:
+        d2, j = _nearest_point(qx, qy, points, k, width)
+        if j >= 0:
+            px, py = points[j, 0], points[j, 1]
+    d = math.sqrt(d2)
+    if not inside:
+        return 0.0, UNKNOWN, d, px, py
+    if state[iy, ix] != FREE:
+        return 0.0, np.int64(state[iy, ix]), d, px, py
+    edge = _window_edge(qx, qy, ox, oy, ox + nx * res, oy + ny * res)
+    best, kind = edge * edge, UNKNOWN
+    k = nearest_blocked[iy, ix]
+    if k >= 0:
+        c2, j = _nearest_box(qx, qy, boxes, k, width)
+        if c2 < best:
+            best, kind = c2, np.int64(state[j // width - 1, j % width - 1])
+    clearance = math.sqrt(best)
+    if d <= clearance:
+        clearance, kind = d, OBSTACLE
+    return clearance, kind, d, px, py
+
+
+@njit(cache=True, nogil=True)
+def query_points(xy, state, nearest_blocked, nearest_obstacle, boxes, points, geo,
+                 unknown_blocks, out):
+    """Clearance (unknown_blocks) or obstacle distance of each (x, y) row, as `query_one`.
+
+    The loop touches no array object but the data (no reference counting), divides by
+    nothing, and skips the obstacle refinement when the two fields name the same cell
+    (the blocked one then covered the same obstacle points).
+    """
+    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    inv, xmax, ymax = 1.0 / res, ox + nx * res, oy + ny * res
+    width = nx + 2
+    for i in range(xy.shape[0]):
+        qx, qy = xy[i, 0], xy[i, 1]
+        ix, iy, inside = _cell_of(qx, qy, ox, oy, inv, nx, ny)
+        if unknown_blocks and not (inside and state[iy, ix] == FREE):
+            out[i] = 0.0
+            continue
+        best = np.inf
+        k = nearest_obstacle[iy, ix]
+        if unknown_blocks:
+            edge = _window_edge(qx, qy, ox, oy, xmax, ymax)
+            best = edge * edge
+            blocked = nearest_blocked[iy, ix]
+            if blocked >= 0:
+                best = min(best, _nearest_box(qx, qy, boxes, blocked, width)[0])
+            if blocked == k:
+                k = -1
+        if k >= 0:
+            best = min(best, _nearest_point(qx, qy, points, k, width)[0])
+        out[i] = math.sqrt(best)
+
+
+@njit(cache=True, nogil=True)
+def polar_kernel(qx, qy, yaw, max_range, state, boxes, geo, ranges, kinds):
+    """Per angular bin, the range of the nearest non-free cell within max_range.
+
+    Every blocked cell is spread over the bins its square subtends, so nothing thin is
+    missed between bins; the window's edge counts as unknown.
+    """
+    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    bins = ranges.shape[0]
+    width = 2.0 * math.pi / bins
+    for b in range(bins):
+        ranges[b] = np.inf
+        kinds[b] = FREE
+        a = yaw + (b + 0.5) * width - math.pi
+        dx, dy = math.cos(a), math.sin(a)
+        exit_t = np.inf  # leaving the window: unknown from there on
+        if dx > 0:
+            exit_t = min(exit_t, (ox + nx * res - qx) / dx)
+        elif dx < 0:
+            exit_t = min(exit_t, (ox - qx) / dx)
+        if dy > 0:
+            exit_t = min(exit_t, (oy + ny * res - qy) / dy)
+        elif dy < 0:
+            exit_t = min(exit_t, (oy - qy) / dy)
+        if exit_t <= max_range:
+            ranges[b] = max(exit_t, 0.0)
+            kinds[b] = UNKNOWN
+    half_diag = res * math.sqrt(0.5)
+    x_lo = max(int((qx - max_range - half_diag - ox) / res), 0)
+    x_hi = min(int((qx + max_range + half_diag - ox) / res) + 1, nx)
+    y_lo = max(int((qy - max_range - half_diag - oy) / res), 0)
+    y_hi = min(int((qy + max_range + half_diag - oy) / res) + 1, ny)
+    for y in range(y_lo, y_hi):
+        for x in range(x_lo, x_hi):
+            if state[y, x] == FREE:
+                continue
+            b = (y + 1) * (nx + 2) + x + 1
+            r = math.hypot(_clamp(qx, boxes[b, 0], boxes[b, 2]) - qx,
+                           _clamp(qy, boxes[b, 1], boxes[b, 3]) - qy)
+            if r > max_range:
+                continue
+            cx, cy = ox + (x + 0.5) * res - qx, oy + (y + 0.5) * res - qy
+            rc = math.hypot(cx, cy)
+            spread = math.pi if rc <= half_diag else math.asin(half_diag / rc)
+            centre = math.atan2(cy, cx) - yaw + math.pi
+            b0 = math.floor((centre - spread) / width)
+            b1 = math.floor((centre + spread) / width)
+            for b in range(b0, b1 + 1):
+                bb = b % bins
+                if r < ranges[bb]:
+                    ranges[bb] = r
+                    kinds[bb] = state[y, x]
+
+
+@njit(cache=True, nogil=True)
+def _segment_distance(px, py, ax, ay, bx, by):
+    ex, ey = bx - ax, by - ay
+    length2 = ex * ex + ey * ey
+    t = 0.0 if length2 == 0.0 else min(max(((px - ax) * ex + (py - ay) * ey) / length2, 0.0), 1.0)
+    return math.hypot(px - ax - t * ex, py - ay - t * ey)
+
+
+@njit(cache=True, nogil=True)
+def polygon_margin(polygon, radius, state, points, geo):
+    """Least signed distance (negative inside) from the polygon (K, 2) in map to what is
+    not known free within `radius` of it: obstacle points, unknown cells (their square,
+    bounded by its circumcircle) and the window's edge; and the kind of that thing."""
+    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    xmin, xmax = polygon[:, 0].min() - radius, polygon[:, 0].max() + radius
+    ymin, ymax = polygon[:, 1].min() - radius, polygon[:, 1].max() + radius
+    best, kind = radius, FREE
+    half_diag = res * math.sqrt(0.5)
+    k = polygon.shape[0]
+    for i in range(k):  # the edge is nearest at a vertex
+        px, py = polygon[i, 0], polygon[i, 1]
+        edge = min(px - ox, ox + nx * res - px, py - oy, oy + ny * res - py)
+        if edge < best:
+            best, kind = edge, UNKNOWN
+    for y in range(max(int((ymin - oy) / res), 0), min(int((ymax - oy) / res) + 1, ny)):
+        for x in range(max(int((xmin - ox) / res), 0), min(int((xmax - ox) / res) + 1, nx)):
+            if state[y, x] == FREE:
+                continue
+            if state[y, x] == OBSTACLE:
+                px, py, reach = float(points[y, x, 0]), float(points[y, x, 1]), 0.0
+            else:  # unknown: its square, bounded by the circle around it
+                px, py, reach = ox + (x + 0.5) * res, oy + (y + 0.5) * res, half_diag
+            d = np.inf
+            inside = False
+            for i in range(k):
+                ax, ay = polygon[i, 0], polygon[i, 1]
+                bx, by = polygon[(i + 1) % k, 0], polygon[(i + 1) % k, 1]
+                d = min(d, _segment_distance(px, py, ax, ay, bx, by))
+                if (ay > py) != (by > py) and px < ax + (py - ay) * (bx - ax) / (by - ay):
+                    inside = not inside
+            d = -d - reach if inside else d - reach
+            if d < best:
+                best, kind = d, state[y, x]
+    return best, kind

@@ -1,0 +1,250 @@
+"""Floor segmentation and the obstacle layer: where the robot can drive, and what is in its way.
+
+Floor: a cell's lowest level is a floor candidate when it is thin (a surface, not an
+object). RANSAC over the candidates' heights finds the dominant near-horizontal plane;
+its inliers seed a region growing over candidates whose neighbours differ by at most
+the robot's step height, so a ramp or a low sill joins the floor, while a table top or
+the top of a box (cut off by its vertical faces) does not. Planes are then fitted to
+the floor region by sequential RANSAC and reported (the floor, a ramp, a raised part).
+Cells without observed floor (under objects, under occluded table tops) take the height
+of the nearest floor cell within `fill_radius`, and beyond it that of the largest plane.
+
+Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
+height. A cell is FREE only if its floor height is known, nothing occupies the band,
+rays have seen at least `min_coverage` (half) of the band's height bins free there, and
+no height it has not seen is suspect: occupied (within two height bins) in a
+neighbouring cell, or possibly under an overhanging board (a table top seen only at its
+rim); otherwise it is UNKNOWN.
+
+Why the map of one scan is mostly UNKNOWN: a cell is seen free at the heights that the
+rays crossing it have there, and every ray of this scanner falls from the camera (1 m
+up) to where it ends. From one place, a cell 1-2 m away is crossed only by rays ending
+not far beyond it, near the floor; the band's upper heights there are crossed only by
+rays ending much farther away, beyond the 4 m range or where nothing returns. In the
+simulator's office one scan sees a median 35 % of the band in floor cells 1-1.5 m away,
+21 % at 2-3 m, so almost none is FREE although its floor was hit. Scans from other
+places cross the same cells at other heights: after the 24 scans round the office table
+93 % of the floor is FREE. The rule stays: a cell whose band was mostly never looked at
+may hold anything there, and a map of several scans (examples/planner.py) is the cure.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scanmap.grid.height_grid import CellLayers
+from scanmap.navigation import _kernels as nk
+from scanmap.navigation._kernels import FREE as FREE  # re-exported: the cell states
+from scanmap.navigation._kernels import OBSTACLE as OBSTACLE
+from scanmap.navigation._kernels import UNKNOWN as UNKNOWN
+from scanmap.navigation.distance_field import distance_transform
+from scanmap_driver.errors import MapError
+
+
+@dataclass(frozen=True)
+class RobotShape:
+    """What the robot drives over (step_height), under (height) and its footprint radius."""
+
+    step_height: float = 0.05
+    height: float = 1.0
+    radius: float = 0.25
+
+    def __post_init__(self) -> None:
+        for name in ("step_height", "height", "radius"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise MapError(f"RobotShape.{name}: expected a finite number > 0, got {value!r}")
+        if self.step_height >= self.height:
+            raise MapError(f"RobotShape: step_height {self.step_height} must be below height "
+                           f"{self.height}")
+
+
+@dataclass(frozen=True)
+class FloorConfig:
+    """Tuning of the segmentation.
+
+    thickness: most vertical extent (m) of a level that can be floor; clearance: free
+    height above it (m) that a floor cell needs.
+    plane_tolerance: RANSAC inlier distance (m). max_slope: steepest floor plane (rad).
+    min_plane_cells: support of a reported plane. fill_radius: how far (m) the height of
+    a floor cell is carried into cells without observed floor (the largest floor plane
+    gives it beyond). detect: False for data that never see the floor (a 2-D laser:
+    every point at one height), which then rely on the `fallback_floor` of `segment`.
+    min_coverage: fraction of the robot band's height bins that rays must have seen free
+    for a cell to be FREE (as Nav2's voxel layer tolerates unknown voxels in a column).
+    This scanner rarely sees every bin of a column (rays at 0.7-1 m over a cell 2 m away
+    end beyond 4 m, returning nothing), so 1.0 leaves most of a room unknown; below 1, a
+    thin object hanging in unseen heights is caught by the suspect rules of
+    `classify_band` instead.
+    overhang_reach: how far (m) the heights of an overhanging board (a table top seen
+    only at its rim: this scanner's laser, 0.5 m up, never lights a top above it) are
+    assumed to extend over cells that never saw those heights; overhang_thickness: the
+    thickest level taken for such a board (a table top, a seat, a shelf).
+    """
+
+    thickness: float = 0.06
+    clearance: float = 0.2
+    plane_tolerance: float = 0.03
+    max_slope: float = math.radians(15.0)
+    min_plane_cells: int = 100
+    max_planes: int = 4
+    fill_radius: float = 1.0
+    min_coverage: float = 0.5
+    overhang_reach: float = 0.6
+    overhang_thickness: float = 0.1
+    ransac_iterations: int = 200
+    seed: int = 0
+    detect: bool = True
+
+
+@dataclass(frozen=True)
+class FloorPlane:
+    """A floor plane normal . p = offset (unit normal, z up) and the floor cells it explains."""
+
+    normal: tuple[float, float, float]
+    offset: float
+    cells: int
+
+    def height_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Plane height at (x, y)."""
+        a, b, c = self.normal
+        return (self.offset - a * np.asarray(x) - b * np.asarray(y)) / c
+
+
+@dataclass(frozen=True, eq=False)
+class Segmentation:
+    """Floor and obstacle layers of a window of the grid (row = y, column = x).
+
+    floor_height: (ny, nx) float32, NaN where unknown. is_floor: open floor: the floor was
+    seen there, nothing is in the robot's band, and nothing may hang above unseen (not
+    the floor under a table). Traversable = is_floor and FREE (the band was seen).
+    state: UNKNOWN / FREE / OBSTACLE per cell. points: (ny, nx, 2) float32, the obstacle
+    point of each obstacle cell (mean of its hits in the band), the centre elsewhere.
+    band_logodds: (ny, nx) float32, highest log-odds in the band (NaN where none).
+    updated: (ny, nx) float64 last update time.
+    """
+
+    origin: tuple[float, float]
+    resolution: float
+    robot: RobotShape
+    floor_height: np.ndarray
+    is_floor: np.ndarray
+    planes: tuple[FloorPlane, ...]
+    state: np.ndarray
+    points: np.ndarray
+    band_logodds: np.ndarray
+    updated: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx)."""
+        return tuple(self.state.shape)
+
+
+def _fit_plane(p: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares plane through points (n, 3): unit normal with z >= 0, and offset."""
+    centre = p.mean(axis=0)
+    normal = np.linalg.svd(p - centre, full_matrices=False)[2][-1]
+    normal = -normal if normal[2] < 0 else normal
+    return normal, float(normal @ centre)
+
+
+def ransac_plane(points: np.ndarray, params: FloorConfig,
+                 rng: np.random.Generator) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """The near-horizontal plane with most inliers (refined by least squares), or None."""
+    if len(points) < 3:
+        return None
+    iterations = params.ransac_iterations
+    sample = points[rng.integers(0, len(points), (iterations, 3))]
+    normals = np.cross(sample[:, 1] - sample[:, 0], sample[:, 2] - sample[:, 0])
+    norms = np.linalg.norm(normals, axis=1)
+    ok = norms > 1e-9
+    normals = normals[ok] / norms[ok, None]
+    normals *= np.where(normals[:, 2] < 0, -1.0, 1.0)[:, None]
+    level = normals[:, 2] >= math.cos(params.max_slope)
+    if not level.any():
+        return None
+    normals, anchors = normals[level], sample[ok][level, 0]
+    subset = points[rng.integers(0, len(points), min(len(points), 4000))]
+    distances = np.abs((subset[None] - anchors[:, None]) @ normals[..., None])[..., 0]
+    best = int(np.argmax((distances <= params.plane_tolerance).sum(axis=1)))
+    normal, offset = normals[best], float(normals[best] @ anchors[best])
+    for _ in range(2):  # refine on all inliers
+        inliers = np.abs(points @ normal - offset) <= params.plane_tolerance
+        if inliers.sum() < 3:
+            return None
+        normal, offset = _fit_plane(points[inliers])
+    if normal[2] < math.cos(params.max_slope):
+        return None
+    return normal, offset, np.abs(points @ normal - offset) <= params.plane_tolerance
+
+
+def _planes_of(points: np.ndarray, params: FloorConfig,
+               rng: np.random.Generator) -> tuple[FloorPlane, ...]:
+    """Sequential RANSAC planes explaining the floor cells, largest first."""
+    planes = []
+    remaining = points
+    while len(planes) < params.max_planes and len(remaining) >= params.min_plane_cells:
+        found = ransac_plane(remaining, params, rng)
+        if found is None or found[2].sum() < params.min_plane_cells:
+            break
+        normal, offset, inliers = found
+        planes.append(FloorPlane(tuple(map(float, normal)), offset, int(inliers.sum())))
+        remaining = remaining[~inliers]
+    return tuple(planes)
+
+
+def segment(layers: CellLayers, robot: RobotShape | None = None,
+            params: FloorConfig | None = None,
+            fallback_floor: float | None = None) -> Segmentation:
+    """Floor, floor height and obstacle state of every cell of `layers`.
+
+    fallback_floor: height assumed where no floor is known within fill_radius (e.g. 0.0
+    for a 2-D laser that never sees the floor); None leaves those cells UNKNOWN.
+    """
+    robot = robot or RobotShape()
+    params = params or FloorConfig()
+    rng = np.random.default_rng(params.seed)
+    ny, nx = layers.shape
+    res = layers.resolution
+    xs, ys = layers.cell_centers()
+    cand = nk.floor_candidates(layers.levels, layers.nlev, params.thickness, params.clearance)
+    has = ~np.isnan(cand)
+    gy, gx = np.nonzero(has)
+    cand_points = np.column_stack([xs[gx], ys[gy], cand[gy, gx]])
+    is_floor = np.zeros((ny, nx), bool)
+    planes: tuple[FloorPlane, ...] = ()
+    dominant = ransac_plane(cand_points, params, rng) if params.detect else None
+    if dominant is not None and dominant[2].sum() >= params.min_plane_cells:
+        seeds = np.zeros((ny, nx), bool)
+        seeds[gy[dominant[2]], gx[dominant[2]]] = True
+        is_floor = nk.grow_region(cand, seeds, robot.step_height)
+        fy, fx = np.nonzero(is_floor)
+        planes = _planes_of(np.column_stack([xs[fx], ys[fy], cand[fy, fx]]), params, rng)
+    floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
+    if is_floor.any():
+        distance, nearest = distance_transform(is_floor)
+        fill = ~is_floor & (distance * res <= params.fill_radius)
+        floor_height[fill] = floor_height.reshape(-1)[nearest[fill]]
+    if planes:  # farther out, the largest floor plane
+        far = np.isnan(floor_height)
+        floor_height[far] = planes[0].height_at(*np.meshgrid(xs, ys))[far]
+    if fallback_floor is not None:
+        floor_height[np.isnan(floor_height)] = fallback_floor
+    state = np.empty((ny, nx), np.uint8)
+    points = np.empty((ny, nx, 2), np.float32)
+    band_logodds = np.empty((ny, nx), np.float32)
+    covered = np.zeros((ny, nx), np.bool_)
+    nk.classify_band(layers.levels, layers.nlev, layers.seen, floor_height,
+                  robot.step_height, robot.height, layers.z_min, layers.mask_dz,
+                  params.min_coverage,
+                  round(params.overhang_reach / res), params.overhang_thickness,
+                  layers.origin[0], layers.origin[1], res, state, points, band_logodds, covered)
+    return Segmentation(origin=layers.origin, resolution=res, robot=robot,
+                        floor_height=floor_height,
+                        is_floor=is_floor & (state != OBSTACLE) & ~covered, planes=planes,
+                        state=state, points=points, band_logodds=band_logodds,
+                        updated=layers.updated)

@@ -1,0 +1,39 @@
+"""Occupancy maps of CARMEN laser logs: 2-D scans fused into the 2.5D grid.
+
+A 2-D scan is a 3-D scan whose points share one height: every beam is a horizontal ray
+from the laser (at `height`, at the log's corrected pose) to its reading. The floor is
+never seen, so the segmentation assumes it at z = 0 and takes a cell as free as soon as
+a beam crossed it (the one height the laser sees).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from scanmap.datasets.carmen import CarmenLog
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.navigation.floor import FloorConfig, RobotShape, Segmentation, segment
+from scanmap_driver.transforms import se2_to_pose, transform_points
+
+LASER_2D = FloorConfig(detect=False, min_coverage=0.0)
+
+
+def fuse_carmen(log: CarmenLog, config: GridConfig | None = None, height: float = 0.3,
+                ) -> HeightGrid:
+    """A grid holding every scan of `log` at its corrected pose."""
+    config = config or GridConfig()
+    config = replace(config, max_range=max(config.max_range, log.max_range))
+    grid = HeightGrid(config)
+    for index in range(len(log)):
+        pose = se2_to_pose(*log.poses[index])
+        points = transform_points(pose, log.scan_points(index, height=height))
+        origin = np.array([*log.poses[index, :2], height])
+        grid.insert(points, origin, float(log.times[index]))
+    return grid
+
+
+def carmen_segmentation(grid: HeightGrid, robot: RobotShape | None = None) -> Segmentation:
+    """Obstacles and free space of a grid fused from 2-D scans (floor assumed at z = 0)."""
+    return segment(grid.layers(), robot, LASER_2D, fallback_floor=0.0)

@@ -1,0 +1,243 @@
+"""Offline mapping of a recording or a folder of scans into a folder of map products.
+
+`map_to_folder(INPUT, OUT)` is what `scanmap map` runs. It maps every scan as fast as
+the machine allows (scans assembled `workers` at a time, `scan_input`), then writes:
+
+    map.npz          the whole map (`mapper_file`; `Mapper.load` resumes from it)
+    map.yaml, .pgm   ROS map_server occupancy map, in the `map` frame
+    trajectory.tum   one line per scan, in order: base_link in map when the scan started
+    overhead.png     the points from above coloured by height (paper Figs. 6-7)
+    occupancy.png    the occupancy map with the robot's path
+    report.json      stage timings and, where `ground_truth/` exists, the errors
+
+Timings, wall and thread CPU seconds per stage (`StageClock`): "decode", "extract"
+(assembly, in the worker threads), "load" (scan files), "register", "fuse" (in the
+mapping thread), "segment" and "write" (once, after mapping). The mapping wall time covers
+opening INPUT to the last fused scan, video decoding included, and the process CPU time
+over the same span counts every thread. Evaluation against ground truth runs after.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections import Counter, defaultdict
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from scanmap.datasets.recordings import ScanSource
+from scanmap.evaluation import ground_truth as evaluation
+from scanmap.io.map_files import save_ros_map
+from scanmap.io.map_image import occupancy_image, write_png
+from scanmap.io.overhead import overhead_view
+from scanmap.io.trajectory import read_tum, write_tum
+from scanmap.mapping.config import MapperConfig
+from scanmap.mapping.mapper import Mapper, MapUpdate
+from scanmap.navigation.costmap import occupancy_grid
+from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, Segmentation
+from scanmap.stage_clock import StageClock
+from scanmap_driver.files import write_json
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner_model import ScannerModel
+from scanmap_driver.sim import ScanTruth, TruthRaster, truth_path
+
+REPORT_FORMAT = "scanmap.map_report/1"
+OFFLINE_CONFIG = MapperConfig(update_obstacles=False, keep_points=0.01)
+
+
+def offline_config(config: MapperConfig | None = None) -> MapperConfig:
+    """`config` (default: the defaults) for a batch job: the obstacle field is built once
+    at the end, not after every scan, and fused points are kept for the overhead view."""
+    if config is None:
+        return OFFLINE_CONFIG
+    return replace(config, update_obstacles=False,
+                   keep_points=config.keep_points or OFFLINE_CONFIG.keep_points)
+Progress = Callable[[int, int, MapUpdate], None]
+
+
+def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *,
+                  model: ScannerModel | None = None, workers: int = 2,
+                  config: MapperConfig = OFFLINE_CONFIG, progress: Progress | None = None,
+                  resume: str | os.PathLike[str] | None = None) -> dict:
+    """Map INPUT (a recording or a folder of scan_NNNN.npz) into `out`; returns the report.
+
+    resume: a map.npz to continue (its settings and scanner model are kept) instead of
+    starting a new map.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    start, start_cpu = time.perf_counter(), time.process_time()
+    scans = ScanSource.open(source, model, workers)
+    mapper = Mapper.load(resume, offline=True) if resume else \
+        Mapper(scans.model, config, offline=True)
+    stages: dict[str, list[StageClock]] = defaultdict(list)
+    truth_scans = bool(scans.ground_truth and any(scans.ground_truth.glob("scan_*.npz")))
+    kept: list[Scan] = []
+    notes = []
+    outcome: Counter[str] = Counter()
+    for done, item in enumerate(scans, start=1):
+        update = mapper.add(item.scan)
+        outcome.update({update.registration.status.value: 1, "fused": int(update.fused),
+                        "degenerate": int(update.registration.degenerate)})
+        for clock in (item.timing, update.timing):
+            for name in clock.wall:
+                stages[name].append(clock)
+        if item.error:
+            notes.append(f"scan {item.scan.index}: {item.error}")
+        if truth_scans:
+            kept.append(item.scan)
+        if progress:
+            progress(done, scans.count, update)
+    mapping_wall = time.perf_counter() - start
+    mapping_cpu = time.process_time() - start_cpu
+
+    products = StageClock()
+    with products.stage("segment"):
+        seg = mapper.segment()
+    with products.stage("write"):
+        files = write_products(mapper, seg, out)
+    for name in products.wall:
+        stages[name].append(products)
+
+    recorded = scans.sweep_seconds()
+    report = {
+        "format": REPORT_FORMAT,
+        "input": {"path": str(scans.path), "kind": scans.kind, "scans": scans.count,
+                  "resumed": None if resume is None else str(resume)},
+        "mapping": {"wall_seconds": mapping_wall,
+                    "seconds_per_scan": mapping_wall / max(scans.count, 1),
+                    "process_cpu_seconds": mapping_cpu,
+                    "recorded_seconds": recorded,
+                    "speedup": recorded / mapping_wall if recorded else None,
+                    "workers": scans.workers, "cpus": os.cpu_count()},
+        "stages": {name: _stage(name, clocks) for name, clocks in stages.items()},
+        "registration": dict(sorted(outcome.items())),
+        "map": _map_summary(mapper, seg),
+        "notes": notes,
+        "files": files,
+        "errors": ground_truth_errors(mapper, seg, scans, kept),
+    }
+    write_json(out / "report.json", _json_safe(report))
+    return report
+
+
+def report_text(report: dict) -> str:
+    """A few lines for people: speed, registration, and the errors when known."""
+    m = report["mapping"]
+    lines = [f"{report['input']['scans']} scans mapped in {m['wall_seconds']:.2f} s "
+             f"({1e3 * m['seconds_per_scan']:.0f} ms per scan)"]
+    if m["speedup"]:
+        lines[-1] += f", {m['speedup']:.1f}x faster than recording ({m['recorded_seconds']:.0f} s)"
+    stages = ", ".join(f"{name} {s['median_cpu_ms']:.1f}"
+                       for name, s in report["stages"].items())
+    lines.append(f"CPU ms by stage (median per scan; segment and write once): {stages}; "
+                 f"{m['process_cpu_seconds']:.1f} CPU s in all threads while mapping")
+    lines.append("registration: " + ", ".join(f"{k} {v}"
+                                              for k, v in report["registration"].items()))
+    errors = report["errors"]
+    if errors.get("available"):
+        for key, label, scale, unit in (("range_m", "range", 1e3, "mm"),
+                                        ("heading_rad", "heading", math.degrees(1.0), "deg")):
+            e = errors[key]
+            if e.get("count"):
+                lines.append(f"{label} error: median {scale * e['median_abs']:.1f} {unit}, "
+                             f"p95 {scale * e['p95_abs']:.1f} {unit}")
+        t, g = errors["trajectory_m"], errors["map"]
+        lines.append(f"trajectory ATE {100 * t['ate_rmse']:.1f} cm over {t['count']} scans; "
+                     f"obstacle F1 {g['obstacle_f1']:.3f} (precision "
+                     f"{g['obstacle_precision']:.3f}, recall {g['obstacle_recall']:.3f}), "
+                     f"free precision {g['free_precision']:.3f}")
+    return "\n".join(lines)
+
+
+def write_products(mapper: Mapper, seg: Segmentation, out: Path) -> dict[str, str]:
+    """map.npz, map.yaml + map.pgm, trajectory.tum, overhead.png, occupancy.png."""
+    mapper.save(out / "map.npz", segmentation=seg)
+    occupancy = occupancy_grid(seg)
+    save_ros_map(out / "map.yaml", occupancy, seg.resolution, seg.origin)
+    trajectory = mapper.trajectory()
+    write_tum(out / "trajectory.tum", trajectory)
+    points, _ = mapper.kept_points()
+    floor = seg.planes[0].height_at(points[:, 0], points[:, 1]) if seg.planes else 0.0
+    path = trajectory.positions[:, :2]
+    write_png(out / "overhead.png", overhead_view(points, floor, path=path))
+    picture = occupancy_image(occupancy, seg.origin, seg.resolution)
+    if len(path):
+        pixels = picture.pixel(path)
+        cv2.polylines(picture.image, [pixels.reshape(-1, 1, 2)], False, (200, 120, 0), 1,
+                      cv2.LINE_AA)
+    write_png(out / "occupancy.png", picture.image)
+    return {name: name for name in ("map.npz", "map.yaml", "map.pgm", "trajectory.tum",
+                                    "overhead.png", "occupancy.png", "report.json")}
+
+
+def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
+                        kept: list[Scan]) -> dict:
+    """Range, heading, trajectory and map errors against the input's ground truth."""
+    folder = scans.ground_truth
+    if folder is None:
+        return {"available": False, "reason": f"no ground_truth/ in {scans.path}"}
+    errors: dict = {"available": True}
+    kept = [scan for scan in kept if truth_path(scans.path, scan.index).is_file()]
+    if kept:  # the scans of this run (not those of a resumed map)
+        ranges, headings, matched, total = [], [], 0, 0
+        for scan in kept:
+            truth = ScanTruth.load(truth_path(scans.path, scan.index))
+            error, count = evaluation.range_errors(scan, truth, scans.model)
+            ranges.append(error)
+            matched, total = matched + error.size, total + count
+            headings.append(evaluation.heading_errors(scan, truth))
+        errors["range_m"] = evaluation.statistics(np.concatenate(ranges)) | {
+            "matched": matched / total if total else math.nan}
+        errors["heading_rad"] = evaluation.statistics(np.concatenate(headings))
+    else:
+        errors["range_m"] = errors["heading_rad"] = {
+            "available": False, "reason": "no per-scan truth (scan files, not a recording)"}
+    reference = read_tum(folder / "trajectory.txt").poses
+    indices = np.array(mapper.scan_indices)
+    estimate = mapper.trajectory().poses
+    usable = indices < len(reference)
+    errors["trajectory_m"] = evaluation.trajectory_errors(estimate[usable],
+                                                          reference[indices[usable]])
+    raster = TruthRaster.load(folder / "raster.npz")
+    world_from_map = evaluation.map_to_world(estimate[usable], reference[indices[usable]])
+    errors["map"] = evaluation.map_errors(seg, raster, world_from_map)
+    return errors
+
+
+def _stage(name: str, clocks: list[StageClock]) -> dict[str, float]:
+    """Count, total and median (per scan) of a stage's wall and CPU seconds."""
+    wall = np.array([c.wall[name] for c in clocks])
+    cpu = np.array([c.cpu[name] for c in clocks])
+    return {"count": len(clocks), "total_wall_s": float(wall.sum()),
+            "total_cpu_s": float(cpu.sum()), "median_wall_ms": 1e3 * float(np.median(wall)),
+            "median_cpu_ms": 1e3 * float(np.median(cpu))}
+
+
+def _map_summary(mapper: Mapper, seg: Segmentation) -> dict:
+    area = seg.resolution ** 2
+    return {"resolution": seg.resolution, "origin": list(seg.origin),
+            "cells": list(seg.shape), "tiles": mapper.grid.tile_count,
+            "memory_bytes": mapper.grid.memory_bytes,
+            "obstacle_m2": float((seg.state == OBSTACLE).sum() * area),
+            "free_m2": float((seg.state == FREE).sum() * area),
+            "unknown_m2": float((seg.state == UNKNOWN).sum() * area),
+            "floor_planes": len(seg.planes)}
+
+
+def _json_safe(value):
+    """NaN and inf become null (JSON has neither); numpy scalars become Python numbers."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
