@@ -392,7 +392,9 @@ void stepPulses() {
   unsigned long interval = 1000000UL / (rate ? rate : 1);
   unsigned long now = micros();
   if (now - lastStepUs >= interval) {
-    lastStepUs = now;
+    // Keep to the schedule: restarting it at `now` would add the loop's latency (~0.1 ms
+    // on an ATmega328P) to every step, 24 % slow at 3200 steps/s. After a pause, restart.
+    lastStepUs = now - lastStepUs >= 2 * interval ? now : lastStepUs + interval;
     digitalWrite(PIN_STEP, HIGH);
     delayMicroseconds(2);
     digitalWrite(PIN_STEP, LOW);

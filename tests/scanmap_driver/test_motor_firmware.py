@@ -335,3 +335,20 @@ def test_avr_build_fits_the_atmega328p(avr_build, drive):
         .splitlines()[2:] if line.strip())}
     assert sizes[".text"] + sizes[".data"] <= 32 * 1024 - 512
     assert sizes[".data"] + sizes[".bss"] <= 0.75 * 2048
+
+
+def test_avr_step_rate_follows_the_speed(avr_build):
+    """Full speed is MAX_STEP_RATE, 3200 steps/s (firmware/README.md), on the simulated
+    16 MHz clock: pin times are simulated, so this holds on a loaded machine too. (Only on
+    the ATmega: the host build's loop sleeps 0.2 ms, too coarse for a 312 µs interval.)"""
+    dev = SketchDevice(avr_build("step"))
+    try:
+        with MotorController.connect(dev.port) as motor:
+            motor.run("CCW", 1000)
+            assert wait_until(lambda: len(dev.changes(STEP)) > 2 * 3200 * 0.9)
+    finally:
+        dev.close()
+    rises = [t for t, value in dev.changes(STEP) if value == 1]
+    start = rises[0] + 600  # past the ramp (0.5 s to full speed)
+    steps = sum(start <= t < start + 200 for t in rises)
+    assert 0.98 * 640 <= steps <= 1.02 * 640
