@@ -22,11 +22,13 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <pty.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
@@ -155,6 +157,7 @@ int main(int argc, char **argv) {
     fprintf(stderr, "usage: %s [-p] [-m mcu] [-f hz] firmware.elf\n", argv[0]);
     return 2;
   }
+  prctl(PR_SET_PDEATHSIG, SIGTERM);  // never outlive the test (or shell) that started us
   setvbuf(stderr, NULL, _IOLBF, 0);
   avr_global_logger_set(logger);
   elf_firmware_t firmware;

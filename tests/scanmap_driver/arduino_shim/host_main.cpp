@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <stdio.h>
+#include <sys/prctl.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -71,6 +72,7 @@ static void flushSerial() {
 }
 
 int main() {
+  prctl(PR_SET_PDEATHSIG, SIGTERM);  // never outlive the test that started us
   clock_gettime(CLOCK_MONOTONIC, &started);
   setvbuf(stderr, NULL, _IOLBF, 0);
   fcntl(0, F_SETFL, fcntl(0, F_GETFL) | O_NONBLOCK);
