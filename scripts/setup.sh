@@ -4,7 +4,7 @@
 #      and run the motor firmware in the tests (g++ for the host build; avr-gcc, avr-libc,
 #      the Arduino AVR core and simavr for the ATmega328P build),
 #   2. a virtual environment in .venv,
-#   3. the package (editable) with its dev, peers and bench extras.
+#   3. the package (editable) with its dev, peers, bench, ros and cluster extras.
 # Needs Python >= 3.11 with pip; apt for the system packages (root, or sudo without a
 # password; otherwise it prints the exact command to run).
 set -euo pipefail
@@ -53,10 +53,15 @@ want=$(sha256sum pyproject.toml | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "scanmap setup: installing scanmap and its dependencies into .venv"
   .venv/bin/python -m pip install --quiet --upgrade pip
-  .venv/bin/python -m pip install --quiet -e ".[dev,peers,bench]"
+  .venv/bin/python -m pip install --quiet -e ".[dev,peers,bench,ros,cluster]"
   echo "$want" > "$stamp"
 fi
 .venv/bin/python -c "import open3d, cv2, numba, scanmap" || {
   echo "scanmap setup: the installed environment does not import; see the errors above" >&2
   exit 1
 }
+
+# Compile every Numba kernel of the main job into its cache beside the sources, so that
+# the first run is as fast as the tenth (a few seconds when the cache is already warm).
+echo "scanmap setup: compiling the kernels (once; later runs load them)"
+.venv/bin/scanmap warm-up

@@ -10,6 +10,7 @@ from tqdm import tqdm
 
 from scanmap.mapping import MapperConfig, MapUpdate
 from scanmap.pipelines.offline import map_to_folder, offline_config, report_text
+from scanmap.stage_clock import process_seconds
 from scanmap_driver import ScannerModel
 
 
@@ -52,4 +53,9 @@ def _map(args: argparse.Namespace) -> int:
                                config=config, progress=progress, resume=args.resume)
     print(report_text(report))
     print(f"wrote {args.out}")
+    command = process_seconds()
+    recorded = report["mapping"]["recorded_seconds"]
+    speed = f", {recorded / command:.1f}x faster than recording" if recorded else ""
+    print(f"the command took {command:.2f} s from start to exit (start-up and imports "
+          f"included){speed}")
     return 0
