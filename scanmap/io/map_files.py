@@ -1,12 +1,14 @@
 """Map files: ROS map_server YAML + PGM for planners, and the full grid as .npz.
 
 map_server (docs/architecture.md): an 8-bit PGM, row 0 at the top, free 254, occupied 0, unknown
-205, and a YAML whose `origin` is the pose of the lower-left pixel; writing follows
-Nav2's map_saver (free if value <= free_thresh * 100, occupied if >= occupied_thresh *
-100), reading follows its map_server (occupancy 1 - shade against the thresholds),
-except that in trinary mode the map_saver's unknown shade 205 always reads as unknown:
-with the ROS 2 default free_thresh 0.25 its occupancy 0.196 would read as free
-(ros-navigation/navigation2 PR #5138, slam_toolbox issue #587), and unknown is never free.
+205, and a YAML whose `origin` is the pose of the lower-left pixel. Writing follows the
+map_saver: a value is free if <= free_thresh * 100, occupied if >= occupied_thresh * 100.
+Every map_server (ROS 1, Nav2) reads a shade p as occupancy occ = (255 - p) / 255, occupied
+if occ > occupied_thresh, else free if occ < free_thresh, else unknown; so the YAML gets
+the thresholds of ROS 1's map_saver and of Nav2's since ros-navigation/navigation2 PR
+#5278, 0.65 and 0.196, which put the unknown shade's occ 50 / 255 = 0.19608 between them
+(with the user's free_thresh 0.25 every unknown cell would read as free). Our reader
+applies the same rule, without exceptions.
 
 The full map keeps every layer of the grid (levels, counts, observed masks, times), its
 configuration, resolution and origin, and a format version. All writes are atomic.
@@ -29,6 +31,9 @@ from scanmap_driver.files import atomic_path, load_npz, save_npz
 
 FORMAT_VERSION = 1
 UNKNOWN_SHADE, FREE_SHADE, OCCUPIED_SHADE = 205, 254, 0
+# The thresholds written to the YAML for readers: 254 (occ 0.0039) < 0.196 < 205 (0.19608)
+# <= 0.65 < 0 (1.0), with the strict and the inclusive comparisons alike.
+READ_FREE_THRESH, READ_OCCUPIED_THRESH = 0.196, 0.65
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,17 +48,21 @@ class RosMap:
 def save_ros_map(path: str | os.PathLike[str], occupancy: np.ndarray, resolution: float,
                  origin: tuple[float, float] | tuple[float, float, float],
                  occupied_thresh: float = 0.65, free_thresh: float = 0.25) -> Path:
-    """Write `path` (.yaml) and the PGM beside it from int8 occupancy (row 0 = lowest y)."""
+    """Write `path` (.yaml) and the PGM beside it from int8 occupancy (row 0 = lowest y).
+
+    The thresholds classify the occupancy values (percent); the YAML always carries
+    READ_FREE_THRESH and READ_OCCUPIED_THRESH, which every map_server reads back right."""
     occupancy = np.asarray(occupancy)
-    if occupancy.ndim != 2 or occupancy.size == 0:
-        raise MapError(f"save_ros_map: occupancy must be a non-empty 2-D array, "
-                       f"got shape {occupancy.shape}")
+    if occupancy.ndim != 2 or occupancy.size == 0 or not np.issubdtype(occupancy.dtype,
+                                                                        np.integer):
+        raise MapError(f"save_ros_map: occupancy must be a non-empty 2-D integer array, "
+                       f"got {occupancy.dtype} of shape {occupancy.shape}")
     if not (0.0 <= free_thresh < occupied_thresh <= 1.0):
         raise MapError(f"save_ros_map: need 0 <= free_thresh < occupied_thresh <= 1, got "
                        f"{free_thresh}, {occupied_thresh}")
     yaml_path = Path(path)
     pgm_path = yaml_path.with_suffix(".pgm")
-    values = occupancy.astype(np.int16)
+    values = occupancy.astype(np.int64)
     pixels = np.full(values.shape, UNKNOWN_SHADE, np.uint8)
     known = (values >= 0) & (values <= 100)
     pixels[known & (values <= round(free_thresh * 100))] = FREE_SHADE
@@ -65,7 +74,7 @@ def save_ros_map(path: str | os.PathLike[str], occupancy: np.ndarray, resolution
     yaw = float(origin[2]) if len(origin) > 2 else 0.0
     text = (f"image: {pgm_path.name}\nmode: trinary\nresolution: {float(resolution)!r}\n"
             f"origin: [{x!r}, {y!r}, {yaw!r}]\nnegate: 0\n"
-            f"occupied_thresh: {occupied_thresh!r}\nfree_thresh: {free_thresh!r}\n")
+            f"occupied_thresh: {READ_OCCUPIED_THRESH!r}\nfree_thresh: {READ_FREE_THRESH!r}\n")
     with atomic_path(yaml_path) as tmp:
         tmp.write_text(text)
     return pgm_path
@@ -152,7 +161,8 @@ def read_pgm(path: str | os.PathLike[str]) -> np.ndarray:
 
 
 def load_ros_map(path: str | os.PathLike[str]) -> RosMap:
-    """Read a map_server YAML and its image; MapError names the file and field at fault."""
+    """Read a map_server YAML and its image by map_server's rules (thresholds required, as
+    there); MapError names the file and field at fault."""
     yaml_path = Path(path)
     try:
         meta = _parse_yaml(yaml_path.read_text(), str(yaml_path))
@@ -167,8 +177,8 @@ def load_ros_map(path: str | os.PathLike[str]) -> RosMap:
     origin = meta.get("origin")
     if not (isinstance(origin, list) and len(origin) == 3 and all(map(math.isfinite, origin))):
         raise MapError(f"{source}: origin must be a list of 3 finite numbers, got {origin!r}")
-    occupied = _number(meta, "occupied_thresh", source, 0.65)
-    free = _number(meta, "free_thresh", source, 0.25)
+    occupied = _number(meta, "occupied_thresh", source)
+    free = _number(meta, "free_thresh", source)
     negate = _number(meta, "negate", source, 0.0) != 0
     mode = str(meta.get("mode", "trinary"))
     if mode not in ("trinary", "scale"):
@@ -182,8 +192,6 @@ def load_ros_map(path: str | os.PathLike[str]) -> RosMap:
     if mode == "scale":
         between = (occ >= free) & (occ <= occupied)
         data[between] = np.rint((occ[between] - free) / (occupied - free) * 100.0)
-    elif not negate:
-        data[shade == UNKNOWN_SHADE] = -1
     return RosMap(data, resolution, (float(origin[0]), float(origin[1]), float(origin[2])))
 
 

@@ -61,14 +61,20 @@ def test_a_corrupt_pgm_is_a_clear_error(tmp_path, text, match):
         read_pgm(path)
 
 
+THRESHOLDS = "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+
+
 @pytest.mark.parametrize("yaml, match", [
     ("resolution: 0.1\norigin: [0, 0, 0]\n", "missing field image"),
     ("image: x.pgm\norigin: [0, 0, 0]\n", "missing field resolution"),
     ("image: x.pgm\nresolution: 0.1\norigin: [0, 0]\n", "origin"),
     ("image: x.pgm\nresolution: fast\norigin: [0, 0, 0]\n", "resolution must be a number"),
-    ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nmode: raw\n", "mode"),
+    ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", "missing field occupied_thresh"),
+    ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\noccupied_thresh: 0.65\n",
+     "missing field free_thresh"),
+    ("image: x.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nmode: raw\n" + THRESHOLDS, "mode"),
     ("just words\n", "key: value"),
-    ("image: missing.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", "cannot read"),
+    ("image: missing.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n" + THRESHOLDS, "cannot read"),
 ])
 def test_a_bad_map_yaml_names_the_field(tmp_path, yaml, match):
     (tmp_path / "x.pgm").write_bytes(b"P5\n1 1\n255\n\xfe")
