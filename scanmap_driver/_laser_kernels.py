@@ -110,6 +110,37 @@ def red_statistics(flat: np.ndarray, height: int, width: int,
     return total / (height * width), float(np.median(line_max))
 
 
+@njit(cache=True, nogil=True)
+def evidence_widths(e: np.ndarray, pad: int, n_pos: int, step: int) -> np.ndarray:
+    """Width (px) of the evidence peak on every `step`-th line: between the interpolated
+    crossings, around the line's maximum, of the midpoint between that maximum and the
+    line's mean (the scene, which the stripe barely moves). NaN for a line without a peak
+    above its mean.
+    """
+    lines = np.arange(0, e.shape[1], step)
+    out = np.full(lines.size, np.nan)
+    for k in range(lines.size):
+        u = lines[k]
+        top = pad
+        total = 0.0
+        for x in range(pad, pad + n_pos):
+            total += e[x, u]
+            top = x if e[x, u] > e[top, u] else top
+        level = 0.5 * (e[top, u] + total / n_pos)
+        if not e[top, u] > level:
+            continue
+        a = top
+        while a > pad and e[a - 1, u] > level:
+            a -= 1
+        b = top
+        while b < pad + n_pos - 1 and e[b + 1, u] > level:
+            b += 1
+        lo = a - (e[a, u] - level) / (e[a, u] - e[a - 1, u]) if a > pad else a
+        hi = b + (e[b, u] - level) / (e[b, u] - e[b + 1, u]) if b < pad + n_pos - 1 else b
+        out[k] = hi - lo
+    return out
+
+
 # ---------------------------------------------------------------------------------
 # Pass 2: ridge response, streamed along the positions, vectorised across the lines.
 # Each loop writes few arrays: LLVM gives up vectorising when the aliasing checks
@@ -463,6 +494,27 @@ def _gather(flat: np.ndarray, e: np.ndarray, pad: int, line: int, base: int, pos
             out[k] = e[pad + first + k, line]
 
 
+SMOOTH = np.exp(-0.5 * (np.arange(-3, 4) / 1.0) ** 2)  # Gaussian, sigma 1.0 px
+
+
+@njit(cache=True, nogil=True, inline="always")
+def smooth_profile(vals: np.ndarray, n: int, out: np.ndarray) -> None:
+    """out[:n] = vals[:n] convolved with SMOOTH (renormalised where cut by the ends).
+
+    Pixel-scale noise (sensor, laser speckle, MJPG blocks) moves the subpixel estimators,
+    most of all the samples at the top that set the centroid's level; a symmetric kernel
+    leaves a symmetric peak where it is."""
+    r = SMOOTH.size // 2
+    for i in range(n):
+        acc = 0.0
+        wsum = 0.0
+        for k in range(max(0, i - r), min(n, i + r + 1)):
+            w = SMOOTH[k - i + r]
+            acc += w * vals[k]
+            wsum += w
+        out[i] = acc / wsum
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _background(vals: np.ndarray, n: int, k0: int, offset: int, side: int) -> float:
     """The lower of the two side means around k0 (a side cut by the line end is skipped)."""
@@ -512,13 +564,18 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
                half: int, estimator: int, channel: int, sat: float, red_min: float,
                peak: np.ndarray, strength: np.ndarray, width: np.ndarray,
                contrast: np.ndarray, flags: np.ndarray) -> None:
-    """Subpixel peak and quality figures for the lines lo..hi-1 (see `laser.extract_stripe`).
+    """Subpixel peak and quality figures for the lines lo..hi-1 (see `laser.extract_stripe`):
+    the estimator runs on the fit channel smoothed along the line (`smooth_profile`);
+    strength and width are of the unsmoothed samples.
 
-    A white clipped peak needs a flank with a red excess of at least red_min.
+    A white clipped peak needs a flank with a red excess of at least red_min; fitting on
+    red, a core clipped in green or blue too is located on luma instead.
     """
     reach = max(offset + side, half) + m
     vals = np.empty(2 * reach + 1)
+    smooth = np.empty(2 * reach + 1)
     g = np.empty(2 * half + 1)
+    g_raw = np.empty(2 * half + 1)
     clipped = np.zeros(2 * half + 1, np.bool_)
     work = np.empty(18)
     for line in range(lo, hi):
@@ -536,25 +593,40 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
         centre = 3 * (base + (first + k0) * pos_stride)
         if flat[centre + 2] >= sat:
             flags[line] |= SATURATED
-            if max(flat[centre], flat[centre + 1]) > WHITE_CAP and not _red_flank(
-                    flat, base, pos_stride, n_pos, first + k0, offset + side, sat, red_min):
-                flags[line] |= NOT_RED
-                continue
-        bg = _background(vals, n_buf, k0, offset, side)
+            if max(flat[centre], flat[centre + 1]) > WHITE_CAP:
+                if not _red_flank(flat, base, pos_stride, n_pos, first + k0, offset + side,
+                                  sat, red_min):
+                    flags[line] |= NOT_RED
+                    continue
+                if channel == 0 and max(flat[centre], flat[centre + 1]) >= sat:
+                    # a clipped white core: the red is flat over a wider band whose edges
+                    # lie on the scene's red; green and blue (luma) draw the core
+                    _gather(flat, e, pad, line, base, pos_stride, 1, first, n_buf, vals)
+                    k0 = _integer_peak(vals, n_buf, k0, m, sat)
+        bg_raw = _background(vals, n_buf, k0, offset, side)
         w0 = max(0, k0 - half)
         n_win = min(n_buf, k0 + half + 1) - w0
         if n_win < 2 * half + 1:
             flags[line] |= AT_EDGE
+        n_clipped = 0
         for k in range(n_win):
-            g[k] = vals[w0 + k] - bg
+            g_raw[k] = vals[w0 + k] - bg_raw
             clipped[k] = vals[w0 + k] >= sat
-        d = peak_offset(g, n_win, k0 - w0, clipped, estimator, half, work)
+            n_clipped += clipped[k]
+        if n_clipped >= 2:  # the flat top's half-height edges: smoothing adds nothing
+            d = peak_offset(g_raw, n_win, k0 - w0, clipped, estimator, half, work)
+        else:
+            smooth_profile(vals, n_buf, smooth)
+            bg = _background(smooth, n_buf, k0, offset, side)
+            for k in range(n_win):
+                g[k] = smooth[w0 + k] - bg
+            d = peak_offset(g, n_win, k0 - w0, clipped, estimator, half, work)
         if not math.isfinite(d) or abs(d) > half:
             d = 0.0
             flags[line] |= FIT_FAILED
         peak[line] = first + k0 + d
-        strength[line] = g[k0 - w0]
-        width[line] = half_max_width(g, n_win, k0 - w0)
+        strength[line] = g_raw[k0 - w0]
+        width[line] = half_max_width(g_raw, n_win, k0 - w0)
 
 
 @njit(cache=True, nogil=True)

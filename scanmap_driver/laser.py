@@ -82,8 +82,8 @@ class LaserConfig:
     fit_channel: channel the peak is fitted on, one of FIT_CHANNELS.
     axis: "columns" when each line across the stripe is an image column (the scanner's
         side-mounted camera), "rows" when it is an image row.
-    stripe_width: expected full width at half maximum of the stripe (px); sets the
-        filter, side and fit windows.
+    stripe_width: expected full width at half maximum of the stripe (px), which sets the
+        filter, side and fit windows; None measures it on each frame (`frame_stripe_width`).
     line_range: (start, stop) of the lines to process, e.g. to skip the encoder disk.
     saturation: level (0-255) from which a channel counts as clipped.
     noise_factor, min_threshold, relative_threshold: the automatic ridge threshold is
@@ -102,7 +102,7 @@ class LaserConfig:
     estimator: str = "com"
     fit_channel: str = "red"
     axis: str = "columns"
-    stripe_width: float = 3.5
+    stripe_width: float | None = None
     line_range: tuple[int, int] | None = None
     saturation: int = 250
     noise_factor: float = 6.0
@@ -122,7 +122,7 @@ class LaserConfig:
             if value != "auto" and not (isinstance(value, (int, float)) and 0 <= value <= 255):
                 raise ScanError(f"LaserConfig.{name}: expected 'auto' or a level in "
                                 f"0..255, got {value!r}")
-        if not 1.0 <= self.stripe_width <= 10.0:
+        if self.stripe_width is not None and not 1.0 <= self.stripe_width <= 10.0:
             raise ScanError(f"LaserConfig.stripe_width: expected 1..10 px, got "
                             f"{self.stripe_width}")
         if not (isinstance(self.support, int) and self.support >= 0):
@@ -135,15 +135,41 @@ class LaserConfig:
             raise ScanError(f"LaserConfig.line_range: expected (start, stop) with "
                             f"0 <= start < stop, got {self.line_range}")
 
-    @property
-    def windows(self) -> tuple[int, int, int, int]:
-        """(triangle half-size m, side offset d, side width w, fit half-width) in px."""
-        fwhm = self.stripe_width
-        m = max(2, round(0.85 * fwhm))
-        offset = max(m, round(0.9 * fwhm))
-        width = max(4, round(1.2 * fwhm))
-        fit = max(3, math.ceil(1.3 * fwhm))
-        return m, offset, width, fit
+
+MIN_WIDTH, DEFAULT_WIDTH, MAX_WIDTH = 1.0, 3.5, 10.0  # stripe FWHM (px)
+WIDTH_SAMPLE_STEP = 8  # the stripe width is measured on every 8th line
+WIDTH_TOLERANCE = 1.5  # a measured width within this factor of DEFAULT_WIDTH keeps it
+WIDTH_SPREAD = 0.25  # largest interquartile range of the lines' widths, relative
+
+
+def filter_windows(fwhm: float) -> tuple[int, int, int, int]:
+    """(triangle half-size m, side offset d, side width w, fit half-width) in px for a
+    stripe of full width at half maximum `fwhm`."""
+    m = max(2, round(0.85 * fwhm))
+    offset = max(m, round(0.9 * fwhm))
+    width = max(4, round(1.2 * fwhm))
+    fit = max(3, math.ceil(1.3 * fwhm))
+    return m, offset, width, fit
+
+
+def frame_stripe_width(e: np.ndarray, pad: int, n_pos: int) -> float:
+    """The stripe's width measured on the evidence plane: the median over sampled lines of
+    the width of each line's strongest evidence (see `_laser_kernels.evidence_widths`),
+    within MIN_WIDTH..MAX_WIDTH. DEFAULT_WIDTH when no line has a peak, when the lines
+    disagree (interquartile range above WIDTH_SPREAD of the median: noise and objects, not
+    one stripe), or when the measure is within WIDTH_TOLERANCE of it: the filter holds
+    such widths, and MJPG's halved chroma widens the red excess a little, so only a stripe
+    that clearly misfits resizes it. The stripe crosses most lines: the median is its
+    width."""
+    widths = lk.evidence_widths(e, pad, n_pos, WIDTH_SAMPLE_STEP)
+    widths = widths[np.isfinite(widths)]
+    if widths.size == 0:
+        return DEFAULT_WIDTH
+    q25, measured, q75 = np.percentile(widths, [25, 50, 75])
+    if (q75 - q25 > WIDTH_SPREAD * measured
+            or DEFAULT_WIDTH / WIDTH_TOLERANCE <= measured <= DEFAULT_WIDTH * WIDTH_TOLERANCE):
+        return DEFAULT_WIDTH
+    return float(np.clip(measured, MIN_WIDTH, MAX_WIDTH))
 
 
 @dataclass(frozen=True)
@@ -207,11 +233,11 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
     height, width = image.shape[:2]
     by_rows = s.axis == "rows"
     n_lines, n_pos = (height, width) if by_rows else (width, height)
-    m, offset, side, half = s.windows
-    pad = max(m, offset + side)
+    m, offset, side, half = filter_windows(s.stripe_width or MAX_WIDTH)
+    pad = max(m, offset + side)  # the widest windows the frame may need
     if n_pos < 2 * pad + 1:
         raise ScanError(f"frame: lines of {n_pos} px are too short for a stripe width of "
-                        f"{s.stripe_width} px")
+                        f"{s.stripe_width or MAX_WIDTH} px")
     lo, hi = (0, n_lines) if s.line_range is None else (
         min(s.line_range[0], n_lines), min(s.line_range[1], n_lines))
     flat = image.reshape(-1)
@@ -227,6 +253,8 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
     e[pad + n_pos:] = 0
     lk.evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
                     np.uint8(s.saturation), pad, e)
+    fwhm = frame_stripe_width(e, pad, n_pos) if s.stripe_width is None else s.stripe_width
+    m, offset, side, half = filter_windows(fwhm)
     noise = lk.evidence_noise(e, pad, n_pos, 4)
     noise_thr = (max(s.min_threshold, s.noise_factor * noise) if s.threshold == "auto"
                  else float(s.threshold))
@@ -259,7 +287,7 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
                max(s.min_threshold, s.noise_factor * noise), peak, strength, line_width,
                contrast, flags)
     if s.support > 0:
-        lk.drop_isolated(peak, flags, lo, hi, s.support, 2.0 * s.stripe_width)
+        lk.drop_isolated(peak, flags, lo, hi, s.support, 2.0 * fwhm)
     return StripeResult(peak=peak, strength=strength, width=line_width, contrast=contrast,
                         candidates=np.minimum(count, 255).astype(np.uint8), flags=flags,
                         threshold=thr, colour_threshold=t)

@@ -25,6 +25,7 @@ from ..transforms import invert_pose
 from .laser_stripe import project
 
 LASER_BGR = np.array([0.05, 0.12, 1.0])  # red laser with a little crosstalk into G and B
+RED_LIT = np.array([0.12, 0.18, 1.0])  # BGR scale of a scene lit by red light (a dark room)
 
 
 def mjpg(image: np.ndarray, quality: int = 85) -> np.ndarray:
@@ -73,12 +74,13 @@ def stripe_profile(pos: np.ndarray, centre: np.ndarray, sigma: float) -> np.ndar
 def stripe_frame(rng: np.random.Generator, *, height: int = 480, width: int = 640,
                  sigma: float = 1.5, amplitude: float = 180.0, level: float = 20.0,
                  noise: float = 2.0, red_objects: int = 0, colourful: float = 0.1,
-                 colour: np.ndarray = LASER_BGR,
+                 colour: np.ndarray = LASER_BGR, tint: np.ndarray | None = None,
                  jpeg: int | None = None, by_rows: bool = False,
                  truth: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(BGR uint8 frame, true stripe position per line). Lines are columns unless by_rows.
 
-    amplitude above 255 clips the red core (saturation); the scene is at `level`.
+    amplitude above 255 clips the red core (saturation); the scene is at `level`, its
+    BGR channels scaled by `tint` (e.g. a red-lit object).
     """
     n_lines, n_pos = (height, width) if by_rows else (width, height)
     if truth is None:
@@ -88,12 +90,29 @@ def stripe_frame(rng: np.random.Generator, *, height: int = 480, width: int = 64
     if by_rows:
         profile = profile.T
     img = scene(rng, height, width, level, red_objects, colourful)
+    if tint is not None:
+        img *= np.asarray(tint)[None, None, :]
     img += amplitude * profile[:, :, None] * np.asarray(colour)[None, None, :]
     img += rng.normal(0.0, noise, img.shape)
     frame = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     if jpeg is not None:
         frame = mjpg(frame, jpeg)
     return frame, truth
+
+
+def saturated_core_frame(rng: np.random.Generator, *, core_width: float = 8.0,
+                         sigma: float = 3.0, level: float = 150.0,
+                         red_tint: np.ndarray = RED_LIT, **kwargs
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """A dark-room frame of a red-lit object crossed by a laser so strong that its core is
+    clipped white over `core_width` px (green and blue saturated too) and its red over a
+    wider band; (frame, true centre per line). kwargs go to `stripe_frame`."""
+    colour = np.asarray(kwargs.pop("colour", LASER_BGR))
+    scene_gb = level * np.asarray(red_tint)[:2].max()
+    reach = math.exp(-0.5 * (0.5 * core_width / sigma) ** 2)  # profile at the core's edge
+    amplitude = (255.0 - scene_gb) / (colour[:2].min() * reach)
+    return stripe_frame(rng, sigma=sigma, amplitude=amplitude, level=level, tint=red_tint,
+                        colour=colour, **kwargs)
 
 
 def disk_points(model: ScannerModel, heading: float, step: float = 6e-5,
