@@ -22,8 +22,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 # scanmap's subpackages from the bottom up; each may import those before it.
-LAYERS = ["stage_clock", "grid", "io", "registration", "navigation", "mapping", "datasets",
-          "evaluation", "pipelines", "cli"]
+LAYERS = ["stage_clock", "grid", "io", "registration", "navigation", "graph", "mapping",
+          "datasets", "evaluation", "pipelines", "cli"]
 
 
 def module_name(path: Path) -> str:

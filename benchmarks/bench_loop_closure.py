@@ -1,0 +1,118 @@
+"""Loop closure on real robot logs: ours with and without it, beside KISS-SLAM, same scans.
+
+Sequences: the CARMEN logs of `bench_registration.carmen` (raw ODOM as the prior, the
+corrected FLASER poses as reference). Methods, all single-threaded but for our loop
+closure's own worker thread, all started from the first reference pose:
+* ours: `ScanOdometry` alone (scan-to-map ICP, odometry prior);
+* ours + loop closure: the same registration feeding a `LoopCloser` (pose graph, loops by
+  place and proximity verified by ICP, GTSAM with a Cauchy kernel), its corrected poses
+  read after the last scan;
+* KISS-SLAM (0.0.2): KISS-ICP odometry with the odometry increment as its motion
+  prediction, local maps split every `kiss_split` m, MapClosures loop detection, its
+  pose graph, poses read after its fine-grained optimisation. It gets each scan extruded
+  into a wall as the registration benchmark's peers do.
+
+Figures: ATE RMSE after SE(2) alignment, mean error of 1 m relative motions, median wall
+time per scan (registration + the caller's part of loop closure), and the loop closer's
+optimisation times (in its thread). Run: `.venv/bin/python -m benchmarks.bench_loop_closure`.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # before Open3D loads: single-threaded peers
+
+import time
+
+import numpy as np
+
+from benchmarks.bench_registration import Sequence, _scores, carmen, run_ours
+from scanmap.graph import LoopCloser, LoopClosureConfig
+from scanmap.registration import ScanOdometry
+
+LOGS = ("intel", "aces", "fhw", "freiburg-101", "belgioioso", "edmonton", "acapulco")
+
+
+def run_loop_closure(seq: Sequence, config: LoopClosureConfig | None = None
+                     ) -> tuple[np.ndarray, list[float], LoopCloser]:
+    """Ours with loop closure: (corrected poses, seconds per scan, the closer)."""
+    registration = ScanOdometry(seq.config, initial_pose=seq.reference[0])
+    closer = LoopCloser(config or LoopClosureConfig(enabled=True), seq.config)
+    seconds = []
+    try:
+        for scan in seq.scans:
+            start = time.perf_counter()
+            result = registration.register(scan)
+            closer.add(result.pose, result, scan.points)
+            seconds.append(time.perf_counter() - start)
+        closer.finish()
+        return closer.corrected_poses(), seconds, closer
+    finally:
+        closer.close()
+
+
+def run_kiss_slam(seq: Sequence, split: float = 10.0) -> tuple[np.ndarray, list[float]]:
+    """KISS-SLAM on the extruded scans, odometry as its prediction (see the docstring)."""
+    from kiss_slam.config import KissSLAMConfig
+    from kiss_slam.slam import KissSLAM
+
+    config = KissSLAMConfig()
+    config.odometry.preprocessing.max_range = seq.max_range
+    config.odometry.preprocessing.min_range = seq.min_range
+    config.odometry.preprocessing.deskew = False
+    config.odometry.mapping.voxel_size = seq.max_range / 100.0
+    config.odometry.registration.max_num_threads = 1
+    config.local_mapper.splitting_distance = split
+    config.local_mapper.voxel_size = 0.1
+    config.loop_closer.detector.density_map_resolution = 0.1
+    config.occupancy_mapper.max_range = seq.max_range
+    slam = KissSLAM(config)
+    seconds = []
+    for k in range(len(seq.scans)):
+        points = seq.peer_points(k)
+        start = time.perf_counter()
+        if k:
+            slam.odometry.last_delta = seq.odometry_step(k)
+        slam.process_scan(points, np.zeros(len(points)))
+        seconds.append(time.perf_counter() - start)
+    slam.generate_new_node()  # closes the last local map, as its pipeline does at the end
+    poses, _ = slam.fine_grained_optimization()
+    return np.array([seq.reference[0] @ p for p in poses])[:len(seq.scans)], seconds
+
+
+def compare(seq: Sequence) -> dict:
+    """One row: ours with loop closure, ours without and KISS-SLAM as peers."""
+    poses, seconds, closer = run_loop_closure(seq)
+    row = {"stage": "loop closure", "method": "ours: ScanOdometry + LoopCloser",
+           "settings": f"{seq.name}, {len(seq.scans)} scans", **_scores(poses, seconds, seq),
+           "loops": len(closer.loops), "optimisations": len(closer.optimise_seconds),
+           "optimise_median_s": float(np.median(closer.optimise_seconds))
+           if closer.optimise_seconds else None,
+           "optimise_max_s": max(closer.optimise_seconds, default=None)}
+    peers = {"ours without loop closure": _scores(*run_ours(seq), seq)}
+    try:
+        peers["KISS-SLAM"] = _scores(*run_kiss_slam(seq), seq)
+    except Exception as exc:  # a peer that fails is reported, not fatal
+        peers["KISS-SLAM"] = {"failed": f"{type(exc).__name__}: {exc}"}
+    row["error"], row["error_unit"] = row["ate_m"], "m, ATE RMSE (SE(2)-aligned)"
+    row["peers"] = peers
+    return row
+
+
+def run(quick: bool = False, only: str | None = None) -> list[dict]:
+    """A row per log (intel and aces with `quick`); `only`: logs whose name contains it."""
+    logs = LOGS[:2] if quick else LOGS
+    return [compare(carmen(name, None)) for name in logs if only is None or only in name]
+
+
+if __name__ == "__main__":
+    import argparse
+    import json
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="intel and aces only")
+    parser.add_argument("--only", help="only logs whose name contains this")
+    args = parser.parse_args()
+    for row in run(quick=args.quick, only=args.only):
+        print(json.dumps(row, indent=1, default=str))

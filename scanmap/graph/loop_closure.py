@@ -1,0 +1,319 @@
+"""Loop closure behind registration: a pose graph of the scans, loops found and verified in
+a background thread, corrected poses published between scans.
+
+The caller (`Mapper`, a benchmark) hands every registered scan to `LoopCloser.add`: that
+only appends a node and its odometry edge (the registered motion since the previous
+scan, with the registration's covariance) and queues the scan's points. The worker
+thread then, per scan, downsamples the points (`prepare_source`) and, every
+`keyframe_distance` metres of travel, looks for loops from that keyframe:
+
+* by place: the scan-context descriptor (`descriptor`) of the keyframe's local map (the
+  scans of the last `context_distance` metres, in its frame) against those of older
+  keyframes, first by ring key, then over every rotation;
+* by proximity: older keyframes whose current corrected position is within the pose
+  uncertainty, modelled as `gate_radius + drift_per_metre * travel` between the two.
+
+Only keyframes `min_separation` metres of travel apart are compared. Each candidate is
+verified by ICP (`register_scan`) of the keyframe's local map onto a submap of the
+candidate's neighbourhood: it must converge, match at least `min_fitness` of the points
+with an inlier RMS below `max_rmse`, constrain every direction (a corridor cannot say
+where along it the robot is), and land within the same pose-uncertainty gate: two
+look-alike corridors metres apart are not one place. Accepted loops become robust edges
+(`PoseGraph`, Cauchy kernel) and the graph is optimised in the worker; `version` counts
+the optimisations, `corrected_poses` reads the newest result.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from scanmap.graph.descriptor import PlaceDescriptor, compare, describe
+from scanmap.graph.pose_graph import Edge, PoseGraph, planar_information
+from scanmap.registration import (
+    LocalMap,
+    Prior,
+    RegistrationConfig,
+    RegistrationResult,
+    prepare_source,
+    register_scan,
+)
+from scanmap_driver.errors import MapError
+from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose
+
+
+@dataclass(frozen=True)
+class LoopClosureConfig:
+    """How loops are looked for, verified and weighed (see the module docstring).
+
+    enabled: close loops at all (the Mapper's switch; off until measured better).
+    keyframe_distance: travel (m) between two loop queries.
+    context_distance: travel (m) of scans around a keyframe that make its local map (the
+      descriptor's points, the ICP source and target): 180 deg scanners see a place
+      from one side only, and a few scans complete it.
+    min_separation: travel (m) between two keyframes before a loop between them counts.
+    place_candidates: older keyframes looked up by ring key, then compared in full.
+    max_descriptor_distance: a place candidate further than this (0..1) is dropped.
+    proximity_candidates: nearest older keyframes (by corrected position) tried.
+    gate_radius, drift_per_metre: the pose-uncertainty gate (m, and m per m of travel
+      between the two keyframes) for proximity candidates and for every verified loop.
+    max_yaw_gate: the heading part of that gate (rad).
+    min_fitness, max_rmse: ICP verification: inlier fraction and inlier RMS (m).
+    odometry_sigma, odometry_yaw_sigma, loop_sigma, loop_yaw_sigma: floors (m, rad) of
+      the edges' sigmas: ICP's covariance is too sure of itself.
+    loop_kernel: Cauchy scale (sigmas) of loop edges in the optimisation.
+    rings, sectors, descriptor_radius: the scan-context image (m).
+    """
+
+    enabled: bool = False
+    keyframe_distance: float = 1.0
+    context_distance: float = 3.0
+    min_separation: float = 15.0
+    place_candidates: int = 5
+    max_descriptor_distance: float = 0.4
+    proximity_candidates: int = 3
+    gate_radius: float = 1.0
+    drift_per_metre: float = 0.05
+    max_yaw_gate: float = 0.8
+    min_fitness: float = 0.6
+    max_rmse: float = 0.08
+    odometry_sigma: float = 0.02
+    odometry_yaw_sigma: float = 0.005
+    loop_sigma: float = 0.05
+    loop_yaw_sigma: float = 0.01
+    loop_kernel: float = 3.0
+    rings: int = 20
+    sectors: int = 60
+    descriptor_radius: float = 10.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name != "enabled" and not (isinstance(value, (int, float)) and value >= 0):
+                raise MapError(f"LoopClosureConfig.{f.name}: expected a number >= 0, "
+                               f"got {value!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Loop:
+    """A verified loop: node `query` seen from node `candidate`, how it was found
+    ("place" or "proximity"), the ICP fitness, and how far (m) it moved the query
+    from its estimate before optimisation."""
+
+    candidate: int
+    query: int
+    found_by: str
+    fitness: float
+    correction: float
+
+
+class LoopCloser:
+    """Pose graph of registered scans with loop closure in a background thread."""
+
+    def __init__(self, config: LoopClosureConfig | None = None,
+                 registration: RegistrationConfig | None = None) -> None:
+        self.config = config or LoopClosureConfig()
+        self.registration = registration or RegistrationConfig()
+        self.graph = PoseGraph()
+        self.loops: list[Loop] = []
+        self.optimise_seconds: list[float] = []
+        self._travel: list[float] = []
+        self._clouds: list[np.ndarray] = []  # per node: downsampled points in base_link
+        self._keyframes: list[int] = []
+        self._descriptors: list[PlaceDescriptor] = []
+        self._optimised = np.zeros((0, 4, 4))  # corrected poses of the first nodes
+        self._version = 0
+        self._lock = threading.Lock()
+        self._queue: queue.Queue = queue.Queue()
+        self._error: BaseException | None = None
+        self._worker = threading.Thread(target=self._run, name="scanmap-loop-closure",
+                                        daemon=True)
+        self._worker.start()
+
+    # -- the caller's side ---------------------------------------------------------------
+    def add(self, pose: np.ndarray, result: RegistrationResult, points: np.ndarray) -> int:
+        """A registered scan: its pose from registration, the result, its (N, 3) points in
+        base_link. Cheap: the search and the optimisation run in the worker."""
+        self._raise_worker_error()
+        pose = np.asarray(pose, dtype=np.float64)
+        with self._lock:
+            node = self.graph.add_node(pose)
+            if node:
+                previous = self.graph.poses[node - 1]
+                step = np.linalg.norm(pose[:2, 3] - previous[:2, 3])
+                self._travel.append(self._travel[-1] + float(step))
+                c = self.config
+                self.graph.add_edge(Edge(node - 1, node, invert_pose(previous) @ pose,
+                                         planar_information(result.covariance, (
+                                             c.odometry_sigma, c.odometry_yaw_sigma))))
+            else:
+                self._travel.append(0.0)
+        self._queue.put((node, np.asarray(points)))
+        return node
+
+    @property
+    def version(self) -> int:
+        """How many optimisations have been published."""
+        return self._version
+
+    def corrected_poses(self) -> np.ndarray:
+        """(N, 4, 4) every node's pose: the newest optimisation's, and nodes added since
+        chained onto the last optimised one by their registered motion."""
+        with self._lock:
+            return self._estimates(len(self.graph))
+
+    def finish(self) -> None:
+        """Wait for the worker to process every queued scan, then optimise once more if a
+        loop came since the last optimisation."""
+        self._queue.join()
+        self._raise_worker_error()
+        if self.graph.loops and len(self._optimised) < len(self.graph):
+            self._optimise()
+
+    def close(self) -> None:
+        """Stop the worker (after what is queued)."""
+        self._queue.put(None)
+        self._worker.join()
+
+    # -- the worker ------------------------------------------------------------------------
+    def _raise_worker_error(self) -> None:
+        if self._error is not None:
+            raise MapError(f"loop closure failed: {self._error!r}") from self._error
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            try:
+                if item is None:
+                    return
+                if self._error is None:
+                    self._process(*item)
+            except Exception as exc:  # reported to the caller by the next add / finish
+                self._error = exc
+            finally:
+                self._queue.task_done()
+
+    def _process(self, node: int, points: np.ndarray) -> None:
+        source = prepare_source(points, self.registration)
+        self._clouds.append(source.cloud.astype(np.float32))
+        c = self.config
+        if self._keyframes and self._travel[node] - self._travel[self._keyframes[-1]] \
+                < c.keyframe_distance:
+            return
+        context = self._context(node, before_only=True)
+        descriptor = describe(context, c.rings, c.sectors, c.descriptor_radius)
+        found = [loop for loop in (self._verify(node, context, candidate, guess, how)
+                                   for candidate, guess, how in self._candidates(node,
+                                                                                 descriptor))
+                 if loop is not None]
+        self._keyframes.append(node)
+        self._descriptors.append(descriptor)
+        if found:
+            best = max(found, key=lambda item: item[0].fitness)
+            with self._lock:
+                self.graph.add_edge(best[1])
+            self.loops.append(best[0])
+            self._optimise()
+
+    def _context(self, node: int, before_only: bool) -> np.ndarray:
+        """Points of the scans within context_distance of travel around `node` (before it
+        only, or on both sides), in its frame by their registered relative poses."""
+        travel = np.asarray(self._travel[:len(self._clouds)])
+        near = np.abs(travel - travel[node]) <= self.config.context_distance
+        if before_only:
+            near[node + 1:] = False
+        with self._lock:
+            poses = self.graph.poses[:len(travel)]
+        to_node = invert_pose(poses[node])
+        parts = []
+        for j in np.flatnonzero(near):
+            relative = to_node @ poses[j]
+            parts.append(self._clouds[j] @ relative[:3, :3].T.astype(np.float32)
+                         + relative[:3, 3].astype(np.float32))
+        return np.concatenate(parts)
+
+    def _gate(self, node: int, candidate: int) -> float:
+        c = self.config
+        return c.gate_radius + c.drift_per_metre * (self._travel[node] - self._travel[candidate])
+
+    def _candidates(self, node: int, descriptor: PlaceDescriptor
+                    ) -> list[tuple[int, np.ndarray, str]]:
+        """(candidate node, guessed pose of `node` in its frame, how found)."""
+        c = self.config
+        older = [k for k, key in enumerate(self._keyframes)
+                 if self._travel[node] - self._travel[key] >= c.min_separation]
+        if not older:
+            return []
+        with self._lock:
+            estimates = self._estimates(node + 1)
+        out: list[tuple[int, np.ndarray, str]] = []
+        keys = np.array([self._descriptors[k].ring_key for k in older])
+        order = np.argsort(np.linalg.norm(keys - descriptor.ring_key, axis=1))
+        for k in order[:c.place_candidates]:
+            distance, yaw = compare(descriptor, self._descriptors[older[k]])
+            if distance <= c.max_descriptor_distance:
+                out.append((self._keyframes[older[k]], se2_to_pose(0.0, 0.0, yaw), "place"))
+        positions = np.array([estimates[self._keyframes[k]][:2, 3] for k in older])
+        distances = np.linalg.norm(positions - estimates[node][:2, 3], axis=1)
+        for k in np.argsort(distances)[:c.proximity_candidates]:
+            candidate = self._keyframes[older[k]]
+            if distances[k] <= self._gate(node, candidate):
+                out.append((candidate, invert_pose(estimates[candidate]) @ estimates[node],
+                            "proximity"))
+        return out
+
+    def _verify(self, node: int, context: np.ndarray, candidate: int, guess: np.ndarray,
+                how: str) -> tuple[Loop, Edge] | None:
+        """ICP of the keyframe's local map onto the candidate's; a Loop and its edge if it
+        passes every test (see the module docstring)."""
+        c, r = self.config, self.registration
+        target = LocalMap(voxel_size=r.map_voxel_size, radius=1e6, max_count=r.map_max_count,
+                          min_points=r.min_plane_points, flatness=r.flatness,
+                          scans_2d=r.scans_2d)
+        target.insert(self._context(candidate, before_only=False), 1, r.default_range_sigma ** 2)
+        source = prepare_source(context, r)
+        settings = replace(r, max_correction=np.inf, max_rotation=np.pi)  # the gate judges
+        prior = Prior(guess, np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 1.0]))
+        result = register_scan(source, target, prior, r.max_threshold, settings)
+        if not result.ok or result.degenerate or result.fitness < c.min_fitness \
+                or result.inlier_rmse > c.max_rmse:
+            return None
+        with self._lock:
+            estimates = self._estimates(node + 1)
+        estimate = invert_pose(estimates[candidate]) @ estimates[node]
+        moved = float(np.linalg.norm(result.pose[:2, 3] - estimate[:2, 3]))
+        turned = abs(pose_to_se2(invert_pose(estimate) @ result.pose)[2])
+        if moved > self._gate(node, candidate) or turned > c.max_yaw_gate:
+            return None
+        information = planar_information(result.covariance, (c.loop_sigma, c.loop_yaw_sigma))
+        return (Loop(candidate, node, how, result.fitness, moved),
+                Edge(candidate, node, result.pose, information, loop=True))
+
+    def _optimise(self) -> None:
+        with self._lock:
+            n = len(self.graph)
+            snapshot = PoseGraph()
+            snapshot.poses = self.graph.poses[:n]
+            snapshot.edges = [e for e in self.graph.edges if max(e.source, e.target) < n]
+            initial = self._estimates(n)
+        start = time.perf_counter()
+        optimised = snapshot.optimise(initial, self.config.loop_kernel)
+        self.optimise_seconds.append(time.perf_counter() - start)
+        with self._lock:
+            self._optimised = optimised
+            self._version += 1
+
+    def _estimates(self, n: int) -> np.ndarray:
+        """Corrected poses of the first n nodes (call with the lock held)."""
+        raw = np.array(self.graph.poses[:n]).reshape(-1, 4, 4)
+        m = min(len(self._optimised), n)
+        if m == 0:
+            return raw
+        out = raw.copy()
+        out[:m] = self._optimised[:m]
+        out[m:] = (self._optimised[m - 1] @ invert_pose(raw[m - 1])) @ raw[m:]
+        return out
