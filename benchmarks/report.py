@@ -41,9 +41,10 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
     lines = ["| stage | method | settings | median time | error | peers (same run) |",
              "|---|---|---|---|---|---|"]
     for row in rows:
-        lines.append(f"| {row.get('stage', '')} | {row.get('method', '')} | "
-                     f"{row.get('settings', '')} | {_fmt_time(row.get('median_s'))} | "
-                     f"{_fmt_error(row)} | {_fmt_peers(row)} |")
+        cells = [str(row.get("stage", "")), str(row.get("method", "")),
+                 str(row.get("settings", "")), _fmt_time(row.get("median_s")),
+                 _fmt_error(row), _fmt_peers(row)]
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(lines)
 
 

@@ -1,0 +1,26 @@
+"""README.md's benchmark table is the one the saved results give, row for row."""
+
+from __future__ import annotations
+
+import json
+
+from benchmarks.readme_table import BEGIN, END, README, RESULTS, highlight_rows, render
+from benchmarks.report import markdown_table
+
+
+def test_the_readme_table_is_generated_from_the_saved_results():
+    result = json.loads(RESULTS.read_text())
+    text = README.read_text()
+    block = text[text.index(BEGIN):text.index(END) + len(END)]
+    assert block == render(result), (
+        "README.md's benchmark table differs from benchmarks/results/latest.json: run "
+        "`python -m benchmarks.readme_table`")
+
+
+def test_every_highlight_is_a_row_of_the_full_table():
+    result = json.loads(RESULTS.read_text())
+    full = (RESULTS.parent / "latest.md").read_text().splitlines()
+    rows = highlight_rows(result["rows"])
+    assert rows, "no highlighted row found in the results"
+    for line in markdown_table(rows).splitlines()[2:]:
+        assert line in full
