@@ -37,3 +37,16 @@ def fuse_carmen(log: CarmenLog, config: GridConfig | None = None, height: float 
 def carmen_segmentation(grid: HeightGrid, robot: RobotShape | None = None) -> Segmentation:
     """Obstacles and free space of a grid fused from 2-D scans (floor assumed at z = 0)."""
     return segment(grid.layers(), robot, LASER_2D, fallback_floor=0.0)
+
+
+def occupied_cells_per_reading(log: CarmenLog, resolution: float = 0.1) -> float:
+    """Cells of a `resolution` grid hit by the log's readings, per reading (0..1].
+
+    The sharpness of the map: readings of one wall at the right poses fall into the few
+    cells along it, so a sharp map has few occupied cells per reading; a wrong beam
+    layout turns each reading by a different angle and smears the walls over many cells.
+    """
+    ends = [transform_points(se2_to_pose(*log.poses[i]), log.scan_points(i))[:, :2]
+            for i in range(len(log))]
+    cells = np.floor(np.vstack(ends) / resolution).astype(np.int64)
+    return len(np.unique(cells, axis=0)) / max(len(cells), 1)

@@ -55,8 +55,9 @@ def test_anchored_odometry_is_rechained_into_the_raw_trajectory(tmp_path):
 
 def test_log_without_odom_lines_uses_flaser_odometry(tmp_path):
     path = tmp_path / "b.log"
-    path.write_text(_flaser([1.0, 2.0], (1, 2, 0.1), (3, 4, 0.2), 1.0)
-                    + _flaser([1.0, 2.0], (1, 2, 0.1), (5, 6, 0.3), 2.0))
+    ranges = np.linspace(1.0, 2.0, 180)
+    path.write_text(_flaser(ranges, (1, 2, 0.1), (3, 4, 0.2), 1.0)
+                    + _flaser(ranges, (1, 2, 0.1), (5, 6, 0.3), 2.0))
     log = read_carmen(path)
     np.testing.assert_allclose(log.odometry, [[3, 4, 0.2], [5, 6, 0.3]])
     assert log.max_range == 2.0
@@ -75,10 +76,11 @@ def test_scan_points_follow_the_beam_geometry():
 
 
 @pytest.mark.parametrize("text, fragment", [
-    ("FLASER 3 1 2\n", ":1: FLASER needs 10 numbers"),
+    ("FLASER 3 1 2\nODOM 0 0 0 0 0 0 1 h 1\n",
+     ":1: FLASER needs 11 numbers, got 3 .the line is cut short"),
     ("ODOM 1 2 x 0 0 0 1 h 1\n", ":1: ODOM has a non-numeric field"),
-    ("FLASER\n", ":1: FLASER needs a beam count"),
-    ("ODOM 0 0 0 0 0 0 1 h 1\n", "no FLASER lines"),
+    ("FLASER\nODOM 0 0 0 0 0 0 1 h 1\n", ":1: FLASER needs a beam count"),
+    ("ODOM 0 0 0 0 0 0 1 h 1\n", "no usable FLASER/ROBOTLASER1 lines"),
 ])
 def test_bad_logs_name_file_and_line(tmp_path, text, fragment):
     path = tmp_path / "bad.log"

@@ -111,4 +111,5 @@ def test_carmen_map_command_writes_a_ros_map(tmp_path, capsys):
     loaded = load_ros_map(tmp_path / "intel-corrected.yaml")
     assert (loaded.data == 100).sum() > 10_000 and (loaded.data == 0).sum() > 100_000
     assert (tmp_path / "intel-corrected.png").stat().st_size < 300_000
-    assert "910 scans" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "910 scans" in out and "beam layout: 180 beams from -90.00 deg" in out
