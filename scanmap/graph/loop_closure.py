@@ -160,6 +160,12 @@ class LoopCloser:
         """How many optimisations have been published."""
         return self._version
 
+    def correction(self) -> np.ndarray:
+        """4x4 map <- registration frame for the newest scans: what turns a pose from
+        registration into the corrected map (identity before the first optimisation)."""
+        with self._lock:
+            return self._correction()
+
     def corrected_poses(self) -> np.ndarray:
         """(N, 4, 4) every node's pose: the newest optimisation's, and nodes added since
         chained onto the last optimised one by their registered motion."""
@@ -307,13 +313,17 @@ class LoopCloser:
             self._optimised = optimised
             self._version += 1
 
+    def _correction(self) -> np.ndarray:
+        """See `correction` (call with the lock held)."""
+        m = len(self._optimised)
+        if m == 0:
+            return np.eye(4)
+        return self._optimised[m - 1] @ invert_pose(self.graph.poses[m - 1])
+
     def _estimates(self, n: int) -> np.ndarray:
         """Corrected poses of the first n nodes (call with the lock held)."""
-        raw = np.array(self.graph.poses[:n]).reshape(-1, 4, 4)
+        out = np.array(self.graph.poses[:n]).reshape(-1, 4, 4)
         m = min(len(self._optimised), n)
-        if m == 0:
-            return raw
-        out = raw.copy()
         out[:m] = self._optimised[:m]
-        out[m:] = (self._optimised[m - 1] @ invert_pose(raw[m - 1])) @ raw[m:]
+        out[m:] = self._correction() @ out[m:]
         return out

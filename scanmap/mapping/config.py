@@ -1,12 +1,14 @@
 """Settings of the Mapper: every part's configuration in one value, kept in map files.
 
 The parts keep their own defaults and reasoning (`GridConfig`, `RegistrationConfig`,
-`OdometryNoiseConfig`, `RobotShape`, `FloorConfig`); this adds what only the mapper decides.
+`OdometryNoiseConfig`, `RobotShape`, `FloorConfig`, `LoopClosureConfig`); this adds what
+only the mapper decides.
 
 A configuration file is TOML: the mapper's own keys at the top, each part in its table
-(`[grid]`, `[registration]`, `[noise]`, `[robot]`, `[floor]`). Keys left out keep their
-defaults; an optional setting is switched off with the string "none". `scanmap config
---defaults` prints every key with its default, `scanmap map --config FILE` reads one.
+(`[grid]`, `[registration]`, `[noise]`, `[robot]`, `[floor]`, `[loop_closure]`). Keys
+left out keep their defaults; an optional setting is switched off with the string
+"none". `scanmap config --defaults` prints every key with its default, `scanmap map
+--config FILE` reads one.
 """
 
 from __future__ import annotations
@@ -18,13 +20,14 @@ import warnings
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
+from scanmap.graph import LoopClosureConfig
 from scanmap.grid.height_grid import GridConfig
 from scanmap.navigation.floor import FloorConfig, RobotShape
 from scanmap.registration import OdometryNoiseConfig, RegistrationConfig
 from scanmap_driver.errors import MapError, ScanmapError
 
 _PARTS = {"grid": GridConfig, "registration": RegistrationConfig, "noise": OdometryNoiseConfig,
-          "robot": RobotShape, "floor": FloorConfig}
+          "robot": RobotShape, "floor": FloorConfig, "loop_closure": LoopClosureConfig}
 
 
 @dataclass(frozen=True)
@@ -50,6 +53,7 @@ class MapperConfig:
     noise: OdometryNoiseConfig = field(default_factory=OdometryNoiseConfig)
     robot: RobotShape = field(default_factory=RobotShape)
     floor: FloorConfig = field(default_factory=FloorConfig)
+    loop_closure: LoopClosureConfig = field(default_factory=LoopClosureConfig)
     max_age: float = 3.0
     obstacle_window: float | None = 12.0
     update_obstacles: bool = True

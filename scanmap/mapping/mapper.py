@@ -9,6 +9,13 @@ reads the newest consistent map. A scan whose registration failed is recorded in
 trajectory with its predicted pose but not fused: a smeared map is worse than a stale
 one, and a stale obstacle field says so.
 
+Loop closure (`MapperConfig.loop_closure.enabled`): each registered scan also goes to a
+`LoopCloser`, which finds and verifies loops and optimises the pose graph in its own
+thread. Poses are registration's poses moved by the newest correction; when an
+optimisation has finished, the next `add` first moves every pose and rebuilds the grid
+from each fused scan's points and ray origins kept in base_link (one per grid cell),
+without the frames. Obstacle queries answer from the previous snapshot meanwhile.
+
 Scans come live from the `Scanner` (`start(ContinuousScanning(...))`: a background
 thread, `mapping_thread`), from a recording or from processed scan files
 (`scan_input.ScanSource`, offline at full speed: `map_scans`). `save` writes the whole
@@ -33,6 +40,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from scanmap.graph import LoopCloser
 from scanmap.grid.height_grid import HeightGrid, InsertStats
 from scanmap.grid.rays import scan_rays
 from scanmap.io.trajectory import Trajectory
@@ -93,16 +101,32 @@ class Mapper:
             maxlen=c.resume_scans)  # (points in map, range sigma) of the newest fused scans
         self._kept: list[tuple[np.ndarray, np.ndarray]] = []  # overhead points, colours
         self._position = (math.nan, math.nan)  # where the robot was at the newest scan
+        self.loop_closer = LoopCloser(c.loop_closure, c.registration) \
+            if c.loop_closure.enabled else None
+        self._applied = 0  # the loop closer's optimisations the map follows
+        # Per scan, with loop closure: its fused points and ray origins in base_link (one
+        # per grid cell) and its time, to rebuild the grid at corrected poses; None when
+        # the scan was not fused.
+        self._contributions: list[tuple[np.ndarray, np.ndarray, float] | None] = []
 
     # -- mapping -------------------------------------------------------------------------
     def add(self, scan: Scan) -> MapUpdate:
         """Register, fuse and publish one scan (see the module docstring)."""
         clock = StageClock()
         with self._lock:
+            closer = self.loop_closer
+            if closer is not None and closer.version != self._applied:
+                with clock.stage("loop_closure"):
+                    self._follow_graph()
             with clock.stage("register"):
                 result = self.registration.register(scan)
+            pose = result.pose
+            if closer is not None:
+                closer.add(result.pose, result, scan.points)
+                pose = closer.correction() @ result.pose
+                self._contributions.append(None)
             self._stamps.append(float(scan.stamp))
-            self._poses.append(result.pose)
+            self._poses.append(pose)
             self._index.append(int(scan.index))
             self._status.append(result.status.value)
             self._odometry.append(scan.odom_start if scan.has_odometry else _NO_POSE)
@@ -110,12 +134,39 @@ class Mapper:
             stats = None
             if fused:  # a MapError here (beyond the extent) leaves the pose recorded
                 with clock.stage("fuse"):
-                    stats = self._fuse(scan, result.pose)
+                    stats = self._fuse(scan, pose)
         if fused and self.config.update_obstacles:
             with clock.stage("obstacles"):
                 self.obstacles.update(self.grid, self._obstacle_bounds())
-        return MapUpdate(int(scan.index), float(scan.stamp), result.pose, result, fused, stats,
-                         clock)
+        return MapUpdate(int(scan.index), float(scan.stamp), pose, result, fused, stats, clock)
+
+    def close_loops(self) -> None:
+        """Wait for loop closure to process every scan, then move the map to its newest
+        optimisation (offline, after the last scan; live, the next `add` does it)."""
+        if self.loop_closer is None:
+            return
+        self.loop_closer.finish()
+        with self._lock:
+            if self.loop_closer.version != self._applied:
+                self._follow_graph()
+        if self.config.update_obstacles and len(self):
+            self.obstacles.update(self.grid, self._obstacle_bounds())
+
+    def _follow_graph(self) -> None:
+        """Move every pose to the loop closer's newest optimisation and rebuild the grid
+        from the kept per-scan points (call with the lock held)."""
+        self._applied = self.loop_closer.version
+        poses = self.loop_closer.corrected_poses()
+        self._poses = list(poses)
+        grid = HeightGrid(self.config.grid)
+        if self.config.grid.window is not None:
+            grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
+        for pose, kept in zip(poses, self._contributions, strict=True):
+            if kept is not None:
+                points, origins, stamp = kept
+                grid.insert(transform_points(pose, points), transform_points(pose, origins),
+                            stamp)
+        self.grid = grid
 
     def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
         poses = frame_poses(scan, pose)
@@ -127,6 +178,13 @@ class Mapper:
         stats = self.grid.insert(points, origins, float(scan.time.max()))
         self._position = (float(last[0, 3]), float(last[1, 3]))
         self._recent.append((points, scan.range_sigma))
+        if self.loop_closer is not None:
+            cell = _one_per_voxel(points, c.grid.resolution)
+            to_base = invert_pose(pose)
+            self._contributions[-1] = (
+                transform_points(to_base, points[cell]).astype(np.float32),
+                transform_points(to_base, origins[cell]).astype(np.float32),
+                float(scan.time.max()))
         if c.keep_points is not None:
             keep = _one_per_voxel(points, c.keep_points)
             self._kept.append((points[keep].astype(np.float32), scan.colors[keep]))

@@ -15,21 +15,20 @@ import pytest
 from scanmap.evaluation import ate_rmse
 from scanmap.graph import LoopCloser, LoopClosureConfig
 from scanmap.registration import RegistrationConfig, ScanOdometry
-from scanmap_driver.sim import ideal_scans
 from scanmap_driver.transforms import invert_pose, se2_to_pose
-from tests.scanmap.graph.ring_scene import corridor_b_end, ring_scene
+from tests.scanmap.graph.ring_scene import corridor_b_end
 
 ON = LoopClosureConfig(enabled=True)
 
 
 @pytest.fixture(scope="module")
-def ring():
-    """(scans, registered poses, true poses) of the whole path round the ring."""
-    ideal = list(ideal_scans(ring_scene(), seed=3))
+def ring(ring_ideal):
+    """(scans, registration results, true poses) of the whole path round the ring."""
+    ideal = ring_ideal
     registration = ScanOdometry(RegistrationConfig(), initial_pose=ideal[0].pose_start)
     results = [registration.register(s.scan) for s in ideal]
     assert all(r.ok for r in results)
-    return ([s.scan for s in ideal], [r for r in results],
+    return ([s.scan for s in ideal], results,
             np.array([s.pose_start for s in ideal]))
 
 
