@@ -65,6 +65,7 @@ _ANCHOR_TOLERANCE = 1e-5  # the anchor repeats the FLASER pose, up to printing
 _LAYOUT_TOLERANCE = 1e-6  # rad; layouts printed with fewer digits still compare equal
 _STREAMS = {"FLASER": "front", "ROBOTLASER1": "front", "RLASER": "rear",
             "ROBOTLASER2": "rear", **{f"RAWLASER{k}": f"raw{k}" for k in range(1, 5)}}
+LASERS = tuple(dict.fromkeys(_STREAMS.values()))  # "front", "rear", "raw1".."raw4"
 _PARAM = re.compile(r"^(?:laser|robot)_(front|rear)_?laser_(fov|resolution)$")
 NONFINITE = "non-finite range readings (dropped)"
 NEGATIVE = "negative range readings (dropped)"
@@ -185,8 +186,8 @@ def carmen_scan_points(ranges: np.ndarray, layout: BeamLayout | None = None,
 
 def read_carmen(path: str | os.PathLike[str], laser: str = "front") -> CarmenLog:
     """Read one laser of a CARMEN log (`.gz` or plain); RecordingError names file and line."""
-    if laser not in set(_STREAMS.values()):
-        raise ValueError(f"laser must be one of {sorted(set(_STREAMS.values()))}, got {laser!r}")
+    if laser not in LASERS:
+        raise ValueError(f"laser must be one of {LASERS}, got {laser!r}")
     path = Path(path)
     opener = gzip.open if path.suffix == ".gz" else open
     try:
@@ -196,7 +197,8 @@ def read_carmen(path: str | os.PathLike[str], laser: str = "front") -> CarmenLog
         raise RecordingError(f"{path}: file not found") from None
     except (OSError, EOFError, UnicodeDecodeError) as exc:
         raise RecordingError(f"{path}: not a readable CARMEN log ({exc})") from None
-    parser = _Parser(path, laser, last_line=len(lines))
+    last_line = max((k for k, line in enumerate(lines, start=1) if line.strip()), default=0)
+    parser = _Parser(path, laser, last_line)
     for number, line in enumerate(lines, start=1):
         parser.feed(number, line.split())
     return parser.result()
@@ -243,7 +245,7 @@ class _Fields:
 
 @dataclass
 class _Scan:
-    """One laser line: its ranges, layout, time and (for posed lines) poses."""
+    """One laser line: its ranges, layout, time, pose and odometry (RAWLASER: the ODOM)."""
 
     number: int
     ranges: np.ndarray
@@ -294,6 +296,8 @@ class _Parser:
 
     def _odom(self, fields: _Fields) -> None:
         x, y, theta = fields.numbers(7)[:3]
+        if not np.isfinite([x, y, theta]).all():
+            raise RecordingError(f"{fields.where}: the pose is not finite")
         pose = se2_to_pose(x, y, theta)
         self.odom_lines += 1
         if self.expect_anchor:

@@ -162,6 +162,8 @@ def test_other_lasers_are_counted_not_mixed(tmp_path):
      r"room.log:1: FLASER: 200 beams: no layout is stated"),
     (lambda lines: [lines[0], flaser(np.full(180, 2.0), [0, np.nan, 0], 1.0)],
      r"room.log:2: a pose is not finite"),
+    (lambda lines: [lines[0], odom([0.0, np.inf, 0.0], 0.5), lines[1]],
+     r"room.log:2: ODOM: the pose is not finite"),
     (lambda lines: [lines[0].replace(lines[0].split()[2], "x", 1)],
      r"room.log:1: FLASER has a non-numeric field"),
 ])
@@ -172,7 +174,7 @@ def test_bad_input_names_file_and_line(tmp_path, change, fragment):
 
 def test_a_cut_last_line_is_skipped_and_counted(tmp_path):
     lines = flaser_room(180, -90.0, 1.0)
-    log = read_carmen(write(tmp_path, lines[:2] + [lines[2][:300]]))
+    log = read_carmen(write(tmp_path, lines[:2] + [lines[2][:300], "\n\n"]))
     assert len(log) == 2 and log.skipped == {TRUNCATED: 1}
 
 

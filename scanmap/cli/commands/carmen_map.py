@@ -10,7 +10,7 @@ from pathlib import Path
 
 import cv2
 
-from scanmap.datasets.carmen import read_carmen
+from scanmap.datasets.carmen import LASERS, read_carmen
 from scanmap.grid.height_grid import GridConfig
 from scanmap.io.map_files import read_pgm, save_ros_map
 from scanmap.navigation.costmap import occupancy_grid
@@ -37,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--height", type=float, default=0.3,
                         help="height (m) given to the laser and its points")
     parser.add_argument("--laser", default="front",
-                        choices=["front", "rear", "raw1", "raw2", "raw3", "raw4"],
+                        choices=LASERS,
                         help="which laser: front (FLASER, ROBOTLASER1), rear (RLASER, "
                              "ROBOTLASER2) or RAWLASERk (posed by the odometry)")
     parser.set_defaults(func=_carmen_map)
