@@ -1,5 +1,5 @@
-"""`scanmap map INPUT --out DIR`: a recording or a folder of scans to a map (see
-`scanmap.pipelines.offline`)."""
+"""`scanmap map INPUT --out DIR`: a recording, a folder of scans or a ROS bag to a map (see
+`scanmap.pipelines.offline`, `scanmap.pipelines.ros_export.map_bag`)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from scanmap.datasets.rosbag import is_bag
 from scanmap.mapping import MapperConfig, MapUpdate
 from scanmap.pipelines.offline import map_to_folder, offline_config, report_text
+from scanmap.pipelines.ros_export import bag_report_text, map_bag
 from scanmap.stage_clock import process_seconds
 from scanmap_driver import ScannerModel
 
@@ -35,12 +37,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--config", type=Path, default=None, metavar="FILE",
                         help="mapper configuration (TOML; `scanmap config --defaults` "
                              "prints every key)")
+    parser.add_argument("--scan-topic", default="/scan", metavar="TOPIC",
+                        help="when INPUT is a ROS 1 or 2 bag (.bag, .mcap, .db3 or a rosbag2 "
+                             "folder): its LaserScan or PointCloud2 topic (default /scan)")
+    parser.add_argument("--odom-topic", default=None, metavar="TOPIC",
+                        help="the bag's nav_msgs/Odometry topic (the registration prior)")
     parser.set_defaults(func=_map)
 
 
 def _map(args: argparse.Namespace) -> int:
     model = ScannerModel.load(args.scanner) if args.scanner else None
-    config = offline_config(MapperConfig.load(args.config) if args.config else None)
+    loaded = MapperConfig.load(args.config) if args.config else None
+    config = offline_config(loaded)
     with tqdm(unit="scan", desc="mapping", dynamic_ncols=True) as bar:
 
         def progress(done: int, total: int, update: MapUpdate) -> None:
@@ -49,9 +57,13 @@ def _map(args: argparse.Namespace) -> int:
                                 refresh=False)
             bar.update(done - bar.n)
 
-        report = map_to_folder(args.input, args.out, model=model, workers=args.workers,
-                               config=config, progress=progress, resume=args.resume)
-    print(report_text(report))
+        if is_bag(args.input):
+            report = map_bag(args.input, args.out, args.scan_topic, odom_topic=args.odom_topic,
+                             config=loaded, progress=progress, resume=args.resume)
+        else:
+            report = map_to_folder(args.input, args.out, model=model, workers=args.workers,
+                                   config=config, progress=progress, resume=args.resume)
+    print(bag_report_text(report) if is_bag(args.input) else report_text(report))
     print(f"wrote {args.out}")
     command = process_seconds()
     recorded = report["mapping"]["recorded_seconds"]
