@@ -132,8 +132,9 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
 def report_text(report: dict) -> str:
     """A few lines for people: speed, registration, and the errors when known."""
     m, job = report["mapping"], report["job"]
-    lines = [f"{report['input']['scans']} scans: the whole job took {job['wall_seconds']:.2f} s "
-             f"(mapping, segmentation, files, report), the mapping loop alone "
+    lines = [f"{report['input']['scans']} scans mapped: the whole job took "
+             f"{job['wall_seconds']:.2f} s (mapping, segmentation, files, report), the "
+             f"mapping loop alone "
              f"{m['wall_seconds']:.2f} s ({1e3 * m['seconds_per_scan']:.0f} ms per scan)"]
     if m["speedup"]:
         lines.append(f"{job['speedup']:.1f}x faster than recording ({m['recorded_seconds']:.0f} s)"
