@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from scanmap.graph import LoopCloser
-from scanmap.grid.height_grid import HeightGrid, InsertStats
+from scanmap.grid.height_grid import GridConfig, HeightGrid, InsertStats
 from scanmap.grid.rays import scan_rays
 from scanmap.io.trajectory import Trajectory
 from scanmap.mapping.config import MapperConfig
@@ -158,15 +158,7 @@ class Mapper:
         self._applied = self.loop_closer.version
         poses = self.loop_closer.corrected_poses()
         self._poses = list(poses)
-        grid = HeightGrid(self.config.grid)
-        if self.config.grid.window is not None:
-            grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
-        for pose, kept in zip(poses, self._contributions, strict=True):
-            if kept is not None:
-                points, origins, stamp = kept
-                grid.insert(transform_points(pose, points), transform_points(pose, origins),
-                            stamp)
-        self.grid = grid
+        self.grid = rebuild_grid(self.config.grid, poses, self._contributions)
 
     def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
         poses = frame_poses(scan, pose)
@@ -326,6 +318,20 @@ class Mapper:
             if config.update_obstacles:
                 mapper.obstacles.update(mapper.grid, mapper._obstacle_bounds())
         return mapper
+
+
+def rebuild_grid(config: GridConfig, poses: np.ndarray,
+                 contributions: list[tuple[np.ndarray, np.ndarray, float] | None]) -> HeightGrid:
+    """A grid of every scan's kept (points, ray origins, time) in base_link, placed at its
+    pose (None: a scan that was not fused); a rolling window centres on the last pose."""
+    grid = HeightGrid(config)
+    if config.window is not None:
+        grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
+    for pose, kept in zip(poses, contributions, strict=True):
+        if kept is not None:
+            points, origins, stamp = kept
+            grid.insert(transform_points(pose, points), transform_points(pose, origins), stamp)
+    return grid
 
 
 def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
