@@ -13,6 +13,14 @@ from numba import njit
 from scanmap.grid import _kernels as gk
 
 UNKNOWN, FREE, OBSTACLE = 0, 1, 2  # cell states of `Segmentation.state`
+# Queries farther than this (m) from the map origin, or not finite, are invalid: a pose
+# from a diverged filter. It keeps every cell index and squared distance of a query
+# exact in int64 and float64.
+COORDINATE_LIMIT = 1e6
+# How far (cells) an obstacle point may stick out of its cell (float32 rounding of points
+# on a cell's edge), and the reach from a cell's centre that covers such a point.
+CELL_SLACK = 1e-4
+CELL_REACH = 0.7073  # >= sqrt(2) * (0.5 + CELL_SLACK)
 
 
 @njit(cache=True, nogil=True)
@@ -325,17 +333,25 @@ def cell_boxes(state, points, geo) -> tuple[np.ndarray, np.ndarray]:
     of one cell (flat, row-major: cell (y, x) is record (y + 1) * (nx + 2) + x + 1), +inf
     on the border and where there is nothing (a query's distance to it is infinite):
     boxes (x lo, y lo, x hi, y hi) of the cells not known free (an obstacle cell's
-    measured point, an unknown cell's square), and the obstacle cells' points (x, y)."""
+    measured point, an unknown cell's square), and the obstacle cells' points (boxes of
+    one point: x, y, x, y). Every box lies in its cell, give or take CELL_SLACK cells (the
+    searches rely on it): an obstacle point beyond is moved to the nearest point there, a
+    NaN one (comparisons with NaN would hide it from every query) to the cell's centre."""
     ny, nx = state.shape
     width = nx + 2
     boxes = np.full(((ny + 2) * width, 4), np.inf)
-    obstacle_points = np.full(((ny + 2) * width, 2), np.inf)
+    obstacle_points = np.full(((ny + 2) * width, 4), np.inf)
     for y in range(ny):
         for x in range(nx):
             b = (y + 1) * width + x + 1
             if state[y, x] == OBSTACLE:
-                boxes[b, 0] = boxes[b, 2] = obstacle_points[b, 0] = points[y, x, 0]
-                boxes[b, 1] = boxes[b, 3] = obstacle_points[b, 1] = points[y, x, 1]
+                lo, hi = -CELL_SLACK * geo[2], (1.0 + CELL_SLACK) * geo[2]
+                x0, y0 = geo[0] + x * geo[2], geo[1] + y * geo[2]
+                px, py = float(points[y, x, 0]), float(points[y, x, 1])
+                px = x0 + 0.5 * geo[2] if np.isnan(px) else _clamp(px, x0 + lo, x0 + hi)
+                py = y0 + 0.5 * geo[2] if np.isnan(py) else _clamp(py, y0 + lo, y0 + hi)
+                boxes[b, 0] = boxes[b, 2] = obstacle_points[b, 0] = obstacle_points[b, 2] = px
+                boxes[b, 1] = boxes[b, 3] = obstacle_points[b, 1] = obstacle_points[b, 3] = py
             elif state[y, x] == UNKNOWN:
                 boxes[b, 0] = geo[0] + x * geo[2]
                 boxes[b, 1] = geo[1] + y * geo[2]
@@ -350,33 +366,60 @@ def _clamp(q: float, lo: float, hi: float) -> float:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _nearest_box(qx, qy, boxes, k, width):
-    """Squared distance from (qx, qy) to the nearest of the 3 x 3 boxes around record k
-    (never on the border), and that box's record (-1 when all are infinite). Compiles
-    to running minima, without branches to mispredict."""
-    best, arg = np.inf, -1
-    for dy in range(-1, 2):
-        for dx in range(-1, 2):
-            j = k + dy * width + dx
-            px = _clamp(qx, boxes[j, 0], boxes[j, 2]) - qx
-            py = _clamp(qy, boxes[j, 1], boxes[j, 3]) - qy
-            d = px * px + py * py
-            if d < best:
-                best, arg = d, j
-    return best, arg
+def _box_d2(qx, qy, boxes, j):
+    """Squared distance from (qx, qy) to box record j (inf for an empty record)."""
+    px = _clamp(qx, boxes[j, 0], boxes[j, 2]) - qx
+    py = _clamp(qy, boxes[j, 1], boxes[j, 3]) - qy
+    return px * px + py * py
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _nearest_point(qx, qy, points, k, width):
-    """`_nearest_box` for points (x, y): half the loads and no clamping."""
-    best, arg = np.inf, -1
-    for dy in range(-1, 2):
-        for dx in range(-1, 2):
-            j = k + dy * width + dx
-            px, py = points[j, 0] - qx, points[j, 1] - qy
-            d = px * px + py * py
-            if d < best:
-                best, arg = d, j
+def _scan_row(qx, qy, boxes, first, x_lo, x_hi, best, arg):
+    """`best, arg` updated with the records first + x_lo ... first + x_hi."""
+    for j in range(first + x_lo, first + x_hi + 1):
+        d2 = _box_d2(qx, qy, boxes, j)
+        if d2 < best:
+            best, arg = d2, j
+    return best, arg
+
+
+@njit(cache=True, nogil=True)
+def _nearest_record(qx, qy, boxes, nearest, ix, iy, geo, best):
+    """Squared distance from (qx, qy) to the nearest box of `cell_boxes` if below `best`,
+    and its record (else best, -1): exact, by a search bounded on both sides.
+
+    Every box lies in its cell, so a box nearer than sqrt(best) is in a cell whose centre
+    is within sqrt(best) + CELL_REACH of the query; and no cell whose centre is
+    nearer the centre of cell (ix, iy) than the field's nearest cell (`nearest`) holds
+    one. The rows of the ring between are scanned; the outer bound shrinks with best.
+    """
+    ox, oy, res, nx = geo[0], geo[1], geo[2], int(geo[3])
+    ny = int(geo[4])
+    width = nx + 2
+    k = nearest[iy, ix]
+    if k < 0:
+        return best, -1
+    arg = -1
+    d2 = _box_d2(qx, qy, boxes, k)
+    if d2 < best:
+        best, arg = d2, k
+    inner = (k // width - 1 - iy) ** 2 + (k % width - 1 - ix) ** 2  # cells squared
+    gx, gy = (qx - ox) / res - 0.5, (qy - oy) / res - 0.5  # query, cell-centre units
+    reach = math.sqrt(best) / res + CELL_REACH
+    for y in range(max(math.floor(gy - reach), 0), min(int(gy + reach) + 2, ny)):
+        reach = math.sqrt(best) / res + CELL_REACH
+        rest = reach * reach - (y - gy) * (y - gy)
+        if rest < 0.0:
+            continue
+        w = math.sqrt(rest)
+        x_lo, x_hi = max(math.floor(gx - w), 0), min(int(gx + w) + 1, nx - 1)
+        hole = inner - (y - iy) * (y - iy)  # cells with (x - ix)^2 < hole are free
+        if hole > 0:
+            skip = math.ceil(math.sqrt(hole)) - 1
+            best, arg = _scan_row(qx, qy, boxes, (y + 1) * width + 1, x_lo,
+                                  min(x_hi, ix - skip - 1), best, arg)
+            x_lo = max(x_lo, ix + skip + 1)
+        best, arg = _scan_row(qx, qy, boxes, (y + 1) * width + 1, x_lo, x_hi, best, arg)
     return best, arg
 
 
@@ -401,22 +444,17 @@ def _cell_of(qx, qy, ox, oy, inv, nx, ny):
 def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, boxes, points, geo):
     """(clearance, kind of what limits it, obstacle distance, obstacle x, obstacle y).
 
-    The obstacle distance is to the nearest measured obstacle point, refined over the
-    3 x 3 cells around the obstacle field's nearest cell (from the window's nearest cell
-    when the query is outside it). The clearance is the distance to the nearest thing not
-    known free, refined likewise around the blocked field's nearest (0 in or beyond the
-    window's unknown or occupied cells), and never more than the obstacle distance (the
-    two refinements may settle on different cells).
+    The obstacle distance is to the nearest measured obstacle point; the clearance is the
+    distance to the nearest thing not known free (0 in or beyond the window's unknown or
+    occupied cells, the window's edge counting as unknown). Both are exact
+    (`_nearest_record`); the query's cell is the window's cell nearest it.
     """
     ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
-    width = nx + 2
     ix, iy, inside = _cell_of(qx, qy, ox, oy, 1.0 / res, nx, ny)
-    d2, px, py = np.inf, qx, qy
-    k = nearest_obstacle[iy, ix]
-    if k >= 0:
-        d2, j = _nearest_point(qx, qy, points, k, width)
-        if j >= 0:
-            px, py = points[j, 0], points[j, 1]
+    px, py = qx, qy
+    d2, j = _nearest_record(qx, qy, points, nearest_obstacle, ix, iy, geo, np.inf)
+    if j >= 0:
+        px, py = points[j, 0], points[j, 1]
     d = math.sqrt(d2)
     if not inside:
         return 0.0, UNKNOWN, d, px, py
@@ -424,11 +462,9 @@ def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, boxes, points, g
         return 0.0, np.int64(state[iy, ix]), d, px, py
     edge = _window_edge(qx, qy, ox, oy, ox + nx * res, oy + ny * res)
     best, kind = edge * edge, UNKNOWN
-    k = nearest_blocked[iy, ix]
-    if k >= 0:
-        c2, j = _nearest_box(qx, qy, boxes, k, width)
-        if c2 < best:
-            best, kind = c2, np.int64(state[j // width - 1, j % width - 1])
+    c2, j = _nearest_record(qx, qy, boxes, nearest_blocked, ix, iy, geo, best)
+    if j >= 0:
+        best, kind = c2, np.int64(state[j // (nx + 2) - 1, j % (nx + 2) - 1])
     clearance = math.sqrt(best)
     if d <= clearance:
         clearance, kind = d, OBSTACLE
@@ -438,34 +474,44 @@ def query_one(qx, qy, state, nearest_blocked, nearest_obstacle, boxes, points, g
 @njit(cache=True, nogil=True)
 def query_points(xy, state, nearest_blocked, nearest_obstacle, boxes, points, geo,
                  unknown_blocks, out):
-    """Clearance (unknown_blocks) or obstacle distance of each (x, y) row, as `query_one`.
-
-    The loop touches no array object but the data (no reference counting), divides by
-    nothing, and skips the obstacle refinement when the two fields name the same cell
-    (the blocked one then covered the same obstacle points).
-    """
+    """Clearance (unknown_blocks) or obstacle distance of each (x, y) row, as `query_one`;
+    0 for a row beyond COORDINATE_LIMIT or not finite (it does not change the other rows).
+    The boxes of the clearance hold the obstacle points, so one search serves it."""
     ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
     inv, xmax, ymax = 1.0 / res, ox + nx * res, oy + ny * res
-    width = nx + 2
     for i in range(xy.shape[0]):
         qx, qy = xy[i, 0], xy[i, 1]
-        ix, iy, inside = _cell_of(qx, qy, ox, oy, inv, nx, ny)
-        if unknown_blocks and not (inside and state[iy, ix] == FREE):
+        if not (-COORDINATE_LIMIT <= qx <= COORDINATE_LIMIT
+                and -COORDINATE_LIMIT <= qy <= COORDINATE_LIMIT):  # False for NaN
             out[i] = 0.0
             continue
-        best = np.inf
-        k = nearest_obstacle[iy, ix]
-        if unknown_blocks:
+        ix, iy, inside = _cell_of(qx, qy, ox, oy, inv, nx, ny)
+        if not unknown_blocks:
+            out[i] = math.sqrt(_nearest_record(qx, qy, points, nearest_obstacle, ix, iy, geo,
+                                               np.inf)[0])
+        elif inside and state[iy, ix] == FREE:
             edge = _window_edge(qx, qy, ox, oy, xmax, ymax)
-            best = edge * edge
-            blocked = nearest_blocked[iy, ix]
-            if blocked >= 0:
-                best = min(best, _nearest_box(qx, qy, boxes, blocked, width)[0])
-            if blocked == k:
-                k = -1
-        if k >= 0:
-            best = min(best, _nearest_point(qx, qy, points, k, width)[0])
-        out[i] = math.sqrt(best)
+            out[i] = math.sqrt(_nearest_record(qx, qy, boxes, nearest_blocked, ix, iy, geo,
+                                               edge * edge)[0])
+        else:
+            out[i] = 0.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _exit(qx, qy, a, ox, oy, xmax, ymax):
+    """Distance from (qx, qy), inside the window [ox, xmax) x [oy, ymax), to its edge along
+    the direction a (rad)."""
+    dx, dy = math.cos(a), math.sin(a)
+    t = np.inf
+    if dx > 0:
+        t = (xmax - qx) / dx
+    elif dx < 0:
+        t = (ox - qx) / dx
+    if dy > 0:
+        t = min(t, (ymax - qy) / dy)
+    elif dy < 0:
+        t = min(t, (oy - qy) / dy)
+    return t
 
 
 @njit(cache=True, nogil=True)
@@ -473,28 +519,34 @@ def polar_kernel(qx, qy, yaw, max_range, state, boxes, geo, ranges, kinds):
     """Per angular bin, the range of the nearest non-free cell within max_range.
 
     Every blocked cell is spread over the bins its square subtends, so nothing thin is
-    missed between bins; the window's edge counts as unknown.
+    missed between bins; the window's edge counts as unknown, at its nearest point in the
+    bin's sector (seen from inside, the edge is nearest at the sector's two rays or at the
+    foot of a side's perpendicular). Outside the window every range is 0, unknown.
     """
     ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    xmax, ymax = ox + nx * res, oy + ny * res
     bins = ranges.shape[0]
     width = 2.0 * math.pi / bins
+    if not (ox <= qx < xmax and oy <= qy < ymax):
+        ranges[:] = 0.0
+        kinds[:] = UNKNOWN
+        return
+    start = yaw - math.pi  # bin b spans start + [b, b + 1] * width
+    t0 = _exit(qx, qy, start, ox, oy, xmax, ymax)
     for b in range(bins):
-        ranges[b] = np.inf
+        t1 = _exit(qx, qy, start + (b + 1) * width, ox, oy, xmax, ymax)
+        ranges[b] = min(t0, t1)
+        t0 = t1
+    for side in range(4):  # sides with outward normals 0, pi / 2, pi, -pi / 2
+        foot = (xmax - qx, ymax - qy, qx - ox, qy - oy)[side]
+        b = math.floor(((side * 0.5 * math.pi - start) % (2.0 * math.pi)) / width)
+        ranges[b % bins] = min(ranges[b % bins], foot)
+    for b in range(bins):
         kinds[b] = FREE
-        a = yaw + (b + 0.5) * width - math.pi
-        dx, dy = math.cos(a), math.sin(a)
-        exit_t = np.inf  # leaving the window: unknown from there on
-        if dx > 0:
-            exit_t = min(exit_t, (ox + nx * res - qx) / dx)
-        elif dx < 0:
-            exit_t = min(exit_t, (ox - qx) / dx)
-        if dy > 0:
-            exit_t = min(exit_t, (oy + ny * res - qy) / dy)
-        elif dy < 0:
-            exit_t = min(exit_t, (oy - qy) / dy)
-        if exit_t <= max_range:
-            ranges[b] = max(exit_t, 0.0)
+        if ranges[b] <= max_range:
             kinds[b] = UNKNOWN
+        else:
+            ranges[b] = np.inf
     half_diag = res * math.sqrt(0.5)
     x_lo = max(int((qx - max_range - half_diag - ox) / res), 0)
     x_hi = min(int((qx + max_range + half_diag - ox) / res) + 1, nx)
@@ -533,8 +585,9 @@ def _segment_distance(px, py, ax, ay, bx, by):
 @njit(cache=True, nogil=True)
 def polygon_margin(polygon, radius, state, points, geo):
     """Least signed distance (negative inside) from the polygon (K, 2) in map to what is
-    not known free within `radius` of it: obstacle points, unknown cells (their square,
-    bounded by its circumcircle) and the window's edge; and the kind of that thing."""
+    not known free within `radius` of it: obstacle points (records of `cell_boxes`),
+    unknown cells (their square, bounded by its circumcircle) and the window's edge; and
+    the kind of that thing. The caller passes a finite polygon and radius."""
     ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
     xmin, xmax = polygon[:, 0].min() - radius, polygon[:, 0].max() + radius
     ymin, ymax = polygon[:, 1].min() - radius, polygon[:, 1].max() + radius
@@ -551,7 +604,8 @@ def polygon_margin(polygon, radius, state, points, geo):
             if state[y, x] == FREE:
                 continue
             if state[y, x] == OBSTACLE:
-                px, py, reach = float(points[y, x, 0]), float(points[y, x, 1]), 0.0
+                b = (y + 1) * (nx + 2) + x + 1
+                px, py, reach = points[b, 0], points[b, 1], 0.0
             else:  # unknown: its square, bounded by the circle around it
                 px, py, reach = ox + (x + 0.5) * res, oy + (y + 0.5) * res, half_diag
             d = np.inf

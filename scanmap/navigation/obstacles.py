@@ -12,6 +12,10 @@ a Nearest's `clearance` are radii of known free space - what a controller may re
   clearance is how far the space is known free, 0 inside unknown space.
 * STALE - the newest data are older than `max_age`; FAULTED - the sensor is faulted.
   Both report no clearance at all: distance and clearance 0, collision.
+* INVALID - the pose is not finite or farther than COORDINATE_LIMIT from the map origin
+  (an upstream filter diverged): no clearance either. A batch row of that kind gets 0
+  and leaves the other rows alone. Malformed arguments (footprint, bins, max_range)
+  raise MapError.
 
 Snapshots are immutable. The mapper builds a new one per scan (`ObstacleMap.update`)
 and swaps it in with one reference assignment, so a controller thread polling
@@ -43,6 +47,30 @@ from scanmap.navigation.floor import (
 )
 from scanmap_driver.errors import MapError
 
+COORDINATE_LIMIT = nk.COORDINATE_LIMIT
+
+
+def _valid(*values: float) -> bool:
+    """Whether every value is a coordinate a query may take (False for NaN and inf)."""
+    return all(-COORDINATE_LIMIT <= v <= COORDINATE_LIMIT for v in values)
+
+
+def _footprint(footprint: float | np.ndarray) -> float | np.ndarray:
+    """A circle radius (float) or polygon (K, 2) of finite, bounded numbers; else MapError."""
+    if np.ndim(footprint) == 0:
+        radius = float(footprint)
+        if not 0.0 <= radius <= COORDINATE_LIMIT:
+            raise MapError(f"ObstacleMap.clearance: footprint radius must be a finite number "
+                           f">= 0, got {footprint}")
+        return radius
+    polygon = np.asarray(footprint, dtype=np.float64)
+    if polygon.ndim != 2 or polygon.shape[1] != 2 or len(polygon) < 3:
+        raise MapError(f"ObstacleMap.clearance: footprint polygon must be (K>=3, 2), "
+                       f"got {polygon.shape}")
+    if not (np.abs(polygon) <= COORDINATE_LIMIT).all():
+        raise MapError("ObstacleMap.clearance: footprint polygon vertices must be finite")
+    return polygon
+
 
 class QueryStatus(enum.IntEnum):
     """How far an answer can be trusted (see the module docstring)."""
@@ -51,6 +79,7 @@ class QueryStatus(enum.IntEnum):
     UNKNOWN = 1
     STALE = 2
     FAULTED = 3
+    INVALID = 4
 
 
 @dataclass(frozen=True)
@@ -200,9 +229,12 @@ class ObstacleMap:
 
     def nearest(self, x: float, y: float) -> Nearest:
         """The nearest obstacle to (x, y) in map, and the known free clearance there."""
+        x, y = float(x), float(y)
         snap, age, status = self._usable()
-        if snap is None:
-            return Nearest(0.0, math.nan, (math.nan, math.nan), 0.0, age, status)
+        if snap is None or not (-COORDINATE_LIMIT <= x <= COORDINATE_LIMIT
+                                and -COORDINATE_LIMIT <= y <= COORDINATE_LIMIT):
+            return Nearest(0.0, math.nan, (math.nan, math.nan), 0.0, age,
+                           status if snap is None else QueryStatus.INVALID)
         clearance, kind, d, px, py = snap.query(x, y)
         bearing = math.atan2(py - y, px - x) if 0.0 < d < math.inf else math.nan
         return Nearest(d, bearing, (px, py), clearance, age,
@@ -219,30 +251,38 @@ class ObstacleMap:
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Metres of known free space around each (x, y) row of points (N, 2+): the distance
-        to the nearest obstacle or unknown cell, 0 inside them and when the data are stale,
-        faulted or absent. What a controller may rely on."""
+        to the nearest obstacle or unknown cell, 0 inside them, for an invalid row, and
+        when the data are stale, faulted or absent. What a controller may rely on."""
         return self._distances(points, unknown_blocks=True)
 
     def obstacle_distance(self, points: np.ndarray) -> np.ndarray:
         """Metres from each (x, y) row to the nearest obstacle, ignoring unknown space (inf
-        when there is none): for planners and evaluation, not a safety clearance."""
+        when there is none; 0 for an invalid row and without usable data): for planners
+        and evaluation, not a safety clearance."""
         return self._distances(points, unknown_blocks=False)
 
     def polar(self, x: float, y: float, yaw: float, bins: int = 360,
               max_range: float = 4.0) -> PolarScan:
         """Virtual range scan around (x, y): bin b covers robot-frame angles
-        -pi + [b, b+1) * 2 pi / bins; stale or faulted data give zero ranges."""
-        if not (isinstance(bins, int) and bins > 0):
+        -pi + [b, b+1) * 2 pi / bins; stale, faulted or absent data and an invalid pose give
+        zero ranges. max_range: metres, finite and > 0."""
+        if not (isinstance(bins, int) and not isinstance(bins, bool) and bins > 0):
             raise MapError(f"ObstacleMap.polar: bins must be a positive integer, got {bins!r}")
+        max_range = float(max_range)
+        if not 0.0 < max_range <= COORDINATE_LIMIT:
+            raise MapError(f"ObstacleMap.polar: max_range must be a finite number > 0, "
+                           f"got {max_range}")
+        x, y, yaw = float(x), float(y), float(yaw)
         angles = -math.pi + (np.arange(bins) + 0.5) * (2 * math.pi / bins)
         ranges = np.zeros(bins)
         kinds = np.full(bins, UNKNOWN, np.uint8)
         snap, age, status = self._usable()
-        if snap is not None:
+        if snap is not None and not _valid(x, y, yaw):
+            status = QueryStatus.INVALID
+        elif snap is not None:
             s = snap.segmentation
-            nk.polar_kernel(float(x), float(y), float(yaw), float(max_range), s.state,
-                         snap.boxes,
-                         snap.geometry, ranges, kinds)
+            nk.polar_kernel(x, y, math.remainder(yaw, 2 * math.pi), max_range, s.state,
+                            snap.boxes, snap.geometry, ranges, kinds)
             status = QueryStatus.UNKNOWN if (kinds == UNKNOWN).any() else QueryStatus.OK
         return PolarScan(angles, ranges, kinds, age, status)
 
@@ -253,24 +293,25 @@ class ObstacleMap:
         footprint: a circle radius (m), a polygon (K, 2) in base_link, or None for the
         robot's circle. QueryStatus UNKNOWN when the margin is limited by unknown space.
         """
+        try:
+            x, y, yaw = map(float, pose)
+        except (TypeError, ValueError):
+            raise MapError(f"ObstacleMap.clearance: pose must be (x, y, yaw), got {pose!r}"
+                           ) from None
+        fp = _footprint(self.robot.radius if footprint is None else footprint)
         snap, age, status = self._usable()
-        if snap is None:
-            return Clearance(True, 0.0, age, status)
-        x, y, yaw = map(float, pose)
-        fp = self.robot.radius if footprint is None else footprint
+        if snap is None or not _valid(x, y, yaw):
+            return Clearance(True, 0.0, age, status if snap is None else QueryStatus.INVALID)
         d, kind, _, _, _ = snap.query(x, y)
-        if np.ndim(fp) == 0:
-            margin = d - float(fp)
+        if isinstance(fp, float):
+            margin = d - fp
         else:
-            polygon = np.asarray(fp, dtype=np.float64)
-            if polygon.ndim != 2 or polygon.shape[1] != 2 or len(polygon) < 3:
-                raise MapError(f"ObstacleMap.clearance: footprint polygon must be (K>=3, 2), "
-                               f"got {polygon.shape}")
+            polygon = fp
             c, s = math.cos(yaw), math.sin(yaw)
             in_map = polygon @ np.array([[c, s], [-s, c]]) + (x, y)
             reach = float(np.hypot(*(in_map - (x, y)).T).max())
             s_ = snap.segmentation
-            margin, kind = nk.polygon_margin(in_map, d + reach, s_.state, s_.points,
-                                          snap.geometry)
-        return Clearance(bool(margin <= 0.0), float(margin), age,
+            margin, kind = nk.polygon_margin(in_map, d + reach, s_.state, snap.points,
+                                             snap.geometry)
+        return Clearance(not margin > 0.0, float(margin), age,
                          QueryStatus.OK if kind in (OBSTACLE, FREE) else QueryStatus.UNKNOWN)
