@@ -13,8 +13,10 @@ from scanmap.io.map_files import (
 )
 from scanmap.io.map_image import MapImage, occupancy_image, write_png
 from scanmap.io.overhead import overhead_view
+from scanmap.io.ros_messages import BagFile, RosMessages
 from scanmap.io.trajectory import Trajectory, read_tum, write_tum
 
 __all__ = ["MapImage", "RosMap", "SavedMap", "Trajectory", "load_map", "load_ros_map",
            "occupancy_image", "overhead_view", "read_pgm", "read_tum", "save_map",
            "save_ros_map", "write_png", "write_tum"]
+__all__ += ["BagFile", "RosMessages"]

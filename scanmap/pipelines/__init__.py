@@ -3,5 +3,7 @@ a CARMEN log fused from its corrected poses (`carmen_map`). See docs/architectur
 
 from scanmap.pipelines.carmen_map import carmen_segmentation, fuse_carmen
 from scanmap.pipelines.offline import map_to_folder, report_text
+from scanmap.pipelines.ros_export import BagWriter, export_map_folder, map_bag
 
 __all__ = ["carmen_segmentation", "fuse_carmen", "map_to_folder", "report_text"]
+__all__ += ["BagWriter", "export_map_folder", "map_bag"]
