@@ -44,20 +44,28 @@ def inflate(seg: Segmentation, inscribed_radius: float | None = None,
 
 
 def costmap_to_occupancy(costs: np.ndarray) -> np.ndarray:
-    """Nav2's translation of costs (uint8) to OccupancyGrid values (int8)."""
+    """Nav2's translation of costs (integers 0..255) to OccupancyGrid values (int8). Other
+    values raise MapError: a cast would wrap them (256 to FREE_SPACE, NaN to anything)."""
+    costs = np.asarray(costs)
+    if not np.issubdtype(costs.dtype, np.integer) or (
+            costs.size and (costs.min() < 0 or costs.max() > NO_INFORMATION)):
+        raise MapError(f"costmap_to_occupancy: costs must be integers 0..255, got "
+                       f"{costs.dtype} values")
     table = np.empty(256, np.int8)
     table[0] = 0
     table[1:253] = 1 + (97 * (np.arange(1, 253) - 1)) // 251
     table[253], table[254], table[255] = 99, 100, -1
-    return table[np.asarray(costs, dtype=np.uint8)]
+    return table[costs]
 
 
 def occupancy_grid(seg: Segmentation) -> np.ndarray:
     """(ny, nx) int8 occupancy in percent: -1 unknown, 0 free, and for obstacle cells the
-    probability of their most certain level in the robot band (sigmoid of log-odds)."""
+    probability of their most certain level in the robot band (sigmoid of log-odds; 100
+    when the log-odds are NaN: an obstacle cell is never written less than occupied
+    for want of a number)."""
     out = np.full(seg.shape, -1, np.int8)
     out[seg.state == FREE] = 0
     obstacle = seg.state == OBSTACLE
     p = 1.0 / (1.0 + np.exp(-seg.band_logodds[obstacle].astype(np.float64)))
-    out[obstacle] = np.clip(np.rint(100.0 * p), 0, 100).astype(np.int8)
+    out[obstacle] = np.clip(np.rint(100.0 * np.nan_to_num(p, nan=1.0)), 0, 100).astype(np.int8)
     return out

@@ -73,3 +73,27 @@ def test_occupancy_grid_is_minus_one_unknown_zero_free_and_percent_occupied():
     grid = occupancy_grid(segmentation(state, logodds=0.85))
     np.testing.assert_array_equal(grid, [[-1, 0, round(100 / (1 + math.exp(-0.85)))]])
     assert grid.dtype == np.int8
+
+
+@pytest.mark.parametrize("costs", [np.array([0.0, math.nan]), np.array([0, 256]),
+                                   np.array([-1, 0]), np.array([1.5])])
+def test_costs_that_are_not_costs_are_a_clear_error(costs):
+    """A cast to uint8 would wrap them: 256 and NaN to FREE_SPACE, -1 to NO_INFORMATION."""
+    with pytest.raises(MapError, match=r"integers 0\.\.255"):
+        costmap_to_occupancy(costs)
+
+
+@pytest.mark.parametrize("name", ["inscribed_radius", "inflation_radius",
+                                  "cost_scaling_factor"])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -0.1])
+def test_inflation_refuses_non_finite_or_negative_parameters(name, value):
+    state = np.full((5, 5), FREE, np.uint8)
+    with pytest.raises(MapError, match=name):
+        inflate(segmentation(state), **{name: value})
+
+
+def test_an_obstacle_cell_without_log_odds_is_occupied():
+    state = np.array([[OBSTACLE, FREE]], np.uint8)
+    seg = segmentation(state)
+    seg.band_logodds[0, 0] = np.nan
+    np.testing.assert_array_equal(occupancy_grid(seg), [[100, 0]])
