@@ -2,8 +2,8 @@
 
 A query never calls unknown space free. Two distance fields are kept: one over the
 obstacle cells, one over every cell not known FREE (obstacles, unknown cells, and
-beyond the window). Distances are to measured surface points (the mean of the hits in
-a cell), refined over the 3 x 3 cells around the field's nearest cell. `distance()` and
+beyond the window). Distances are exact: to measured surface points (the mean of the
+hits in a cell) and unknown cells' squares, found by a search the fields bound. `distance()` and
 a Nearest's `clearance` are radii of known free space - what a controller may rely on;
 `obstacle_distance()` ignores unknown space, for planners and evaluation. QueryStatus:
 
