@@ -172,6 +172,49 @@ class LoopCloser:
         with self._lock:
             return self._estimates(len(self.graph))
 
+    def state(self) -> dict[str, np.ndarray]:
+        """The graph as arrays, to save with a map (call after `finish`): corrected poses
+        (N, 4, 4); edges (E, 3) source, target, loop; their measurements (E, 4, 4) and
+        information (E, 3, 3); every node's kept points, concatenated (`clouds`, float32)
+        with their counts (`cloud_sizes`); the keyframes' node ids."""
+        with self._lock:
+            n = len(self._clouds)
+            edges = [e for e in self.graph.edges if max(e.source, e.target) < n]
+            return {"poses": self._estimates(n),
+                    "edges": np.array([[e.source, e.target, e.loop] for e in edges],
+                                      np.int64).reshape(-1, 3),
+                    "measurements": np.array([e.measurement for e in edges]).reshape(-1, 4, 4),
+                    "information": np.array([e.information for e in edges]).reshape(-1, 3, 3),
+                    "clouds": np.concatenate([np.zeros((0, 3), np.float32), *self._clouds]),
+                    "cloud_sizes": np.array([len(c) for c in self._clouds], np.int64),
+                    "keyframes": np.array(self._keyframes, np.int64)}
+
+    @classmethod
+    def restore(cls, state: dict[str, np.ndarray], config: LoopClosureConfig | None = None,
+                registration: RegistrationConfig | None = None) -> LoopCloser:
+        """A LoopCloser continuing a saved `state`. The saved corrected poses become its
+        nodes' poses: registration resumes from the last corrected pose, so the next
+        scan's odometry edge joins the graph in that frame."""
+        closer = cls(config, registration)
+        poses = np.asarray(state["poses"], dtype=np.float64)
+        for pose in poses:
+            closer.graph.add_node(pose)
+        for (source, target, loop), measurement, information in zip(
+                state["edges"], state["measurements"], state["information"], strict=True):
+            closer.graph.add_edge(Edge(int(source), int(target), measurement, information,
+                                       bool(loop)))
+        steps = np.linalg.norm(np.diff(poses[:, :2, 3], axis=0), axis=1)
+        closer._travel = np.concatenate([[0.0], np.cumsum(steps)])[:len(poses)].tolist()
+        closer._clouds = np.split(np.asarray(state["clouds"], np.float32),
+                                  np.cumsum(state["cloud_sizes"])[:-1])[:len(poses)]
+        c = closer.config
+        for node in np.asarray(state["keyframes"], np.int64).tolist():
+            closer._keyframes.append(node)
+            closer._descriptors.append(describe(closer._context(node, before_only=True),
+                                                c.rings, c.sectors, c.descriptor_radius))
+        closer._optimised = poses.copy()  # the poses are corrected: no correction pending
+        return closer
+
     def finish(self) -> None:
         """Wait for the worker to process every queued scan, then optimise once more if a
         loop came since the last optimisation."""

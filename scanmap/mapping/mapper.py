@@ -53,6 +53,7 @@ from scanmap.navigation.floor import Segmentation, segment
 from scanmap.navigation.obstacles import ObstacleMap
 from scanmap.registration import RegistrationResult, ScanOdometry
 from scanmap.stage_clock import StageClock
+from scanmap_driver.errors import MapError
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel, reference_scanner
 from scanmap_driver.transforms import invert_pose, transform_points
@@ -263,6 +264,8 @@ class Mapper:
         segmentation: derived obstacle/floor layers to store too (e.g. `segment()`).
         """
         with self._lock:
+            if self.loop_closer is not None:
+                self.loop_closer.finish()  # the graph of every scan so far
             state = self._state()
         save_state(path, state, segmentation)
 
@@ -281,7 +284,31 @@ class Mapper:
             poses=np.array(self._poses, np.float64).reshape(-1, 4, 4),
             index=np.array(self._index, np.int64), status=np.array(self._status, str),
             odometry=np.array(self._odometry, np.float64).reshape(-1, 4, 4),
-            resume_points=resume, resume_sigma=sigma, points=points, point_colors=colours)
+            resume_points=resume, resume_sigma=sigma, points=points, point_colors=colours,
+            loop_closure=self._loop_state())
+
+    def _loop_state(self) -> dict[str, np.ndarray]:
+        """The loop closer's graph and the per-scan kept points (none without loop closure)."""
+        if self.loop_closer is None:
+            return {}
+        kept = [k for k in self._contributions if k is not None]
+        empty = np.zeros((0, 3), np.float32)
+        return {**self.loop_closer.state(),
+                "kept_points": np.concatenate([empty, *(k[0] for k in kept)]),
+                "kept_origins": np.concatenate([empty, *(k[1] for k in kept)]),
+                "kept_sizes": np.array([-1 if k is None else len(k[0])
+                                        for k in self._contributions], np.int64),
+                "kept_stamps": np.array([k[2] for k in kept], np.float64)}
+
+    def _resume_loops(self, state: MapperState, path: str | os.PathLike[str]) -> None:
+        """Continue the saved pose graph (a map saved with loop closure on)."""
+        if not state.loop_closure:
+            raise MapError(f"{path}: saved without loop closure; its graph cannot be resumed "
+                           "(load it with loop_closure.enabled = false)")
+        self.loop_closer.close()
+        c = self.config
+        self.loop_closer = LoopCloser.restore(state.loop_closure, c.loop_closure, c.registration)
+        self._contributions = _split_kept(state.loop_closure)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], *, clock: Callable[[], float] = time.monotonic,
@@ -306,6 +333,8 @@ class Mapper:
         mapper._odometry = list(state.odometry)
         if len(state.points):
             mapper._kept = [(state.points, state.point_colors)]
+        if mapper.loop_closer is not None:
+            mapper._resume_loops(state, path)
         if last is not None and len(state.resume_points):
             odometry = state.odometry[-1]
             mapper.registration.register_points(
@@ -318,6 +347,18 @@ class Mapper:
             if config.update_obstacles:
                 mapper.obstacles.update(mapper.grid, mapper._obstacle_bounds())
         return mapper
+
+
+def _split_kept(loops: dict[str, np.ndarray]
+                ) -> list[tuple[np.ndarray, np.ndarray, float] | None]:
+    """The per-scan kept points of a map file's loop-closure arrays, as the Mapper keeps them."""
+    sizes = loops["kept_sizes"]
+    fused = sizes >= 0
+    bounds = np.cumsum(sizes[fused])[:-1]
+    points = iter(np.split(loops["kept_points"], bounds))
+    origins = iter(np.split(loops["kept_origins"], bounds))
+    stamps = iter(loops["kept_stamps"].tolist())
+    return [(next(points), next(origins), next(stamps)) if f else None for f in fused]
 
 
 def rebuild_grid(config: GridConfig, poses: np.ndarray,

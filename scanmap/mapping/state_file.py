@@ -16,6 +16,11 @@ reads it) plus the mapper's own arrays:
                          last pose, to register the next scan against after a restart
     resume_sigma         (M,) float32: their range sigma (m)
     points, point_colors (K, 3) float32 in map and uint8 RGB: kept points (overhead view)
+    loop_closure_*       with loop closure only: the pose graph (`LoopCloser.state`:
+                         poses, edges, measurements, information, clouds, cloud_sizes,
+                         keyframes) and the Mapper's per-scan kept points for rebuilding
+                         the grid (kept_points, kept_origins in base_link, kept_sizes
+                         (N,) with -1 for a scan not fused, kept_stamps)
 
 Written atomically; read without pickle; a missing or malformed array is a MapError
 naming the file and the array.
@@ -26,7 +31,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -40,6 +45,9 @@ from scanmap_driver.scanner_model import ScannerModel
 
 FORMAT = "scanmap.mapper/1"
 _TRAJECTORY = ("stamps", "poses", "index", "status", "odometry")
+_LOOPS = "loop_closure_"
+_LOOP_ARRAYS = ("poses", "edges", "measurements", "information", "clouds", "cloud_sizes",
+                "keyframes", "kept_points", "kept_origins", "kept_sizes", "kept_stamps")
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +66,7 @@ class MapperState:
     resume_sigma: np.ndarray
     points: np.ndarray
     point_colors: np.ndarray
+    loop_closure: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def save_state(path: str | os.PathLike[str], state: MapperState,
@@ -80,7 +89,8 @@ def save_state(path: str | os.PathLike[str], state: MapperState,
              **{f"trajectory_{name}": getattr(state, name) for name in _TRAJECTORY},
              resume_points=state.resume_points.astype(np.float32),
              resume_sigma=state.resume_sigma.astype(np.float32),
-             points=state.points.astype(np.float32), point_colors=state.point_colors)
+             points=state.points.astype(np.float32), point_colors=state.point_colors,
+             **{f"{_LOOPS}{name}": value for name, value in state.loop_closure.items()})
 
 
 def load_state(path: str | os.PathLike[str]) -> MapperState:
@@ -113,6 +123,16 @@ def load_state(path: str | os.PathLike[str]) -> MapperState:
     m = arrays["resume_points"].shape[0]
     _check_points(arrays, "resume_points", "resume_sigma", (m,), path)
     _check_points(arrays, "points", "point_colors", (arrays["points"].shape[0], 3), path)
+    loops = {name[len(_LOOPS):]: value for name, value in arrays.items()
+             if name.startswith(_LOOPS)}
+    if loops:
+        missing = [name for name in _LOOP_ARRAYS if name not in loops]
+        if missing:
+            raise MapError(f"{path}: the loop-closure graph lacks {missing}")
+        for name in ("poses", "kept_sizes"):
+            if len(loops[name]) != n:
+                raise MapError(f"{path}: {_LOOPS}{name} must hold {n} entries, one per scan, "
+                               f"got {len(loops[name])}")
     return MapperState(grid=grid, config=config, model=model,
                        stamps=trajectory["stamps"].astype(np.float64),
                        poses=trajectory["poses"].astype(np.float64),
@@ -121,7 +141,8 @@ def load_state(path: str | os.PathLike[str]) -> MapperState:
                        odometry=trajectory["odometry"].astype(np.float64),
                        resume_points=arrays["resume_points"],
                        resume_sigma=arrays["resume_sigma"], points=arrays["points"],
-                       point_colors=arrays["point_colors"].astype(np.uint8))
+                       point_colors=arrays["point_colors"].astype(np.uint8),
+                       loop_closure=loops)
 
 
 def _json(arrays: dict[str, np.ndarray], name: str, path: str | os.PathLike[str]) -> dict:

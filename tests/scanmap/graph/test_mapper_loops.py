@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from scanmap.evaluation import map_errors
+from scanmap.evaluation import ate_rmse, map_errors
 from scanmap.graph import LoopClosureConfig
 from scanmap.mapping import Mapper, MapperConfig
 from scanmap_driver.sim import truth_raster
-from tests.scanmap.graph.ring_scene import ring_scene
+from tests.scanmap.graph.ring_scene import corridor_b_end, ring_scene
 
 
 def mapped(ideal: list, loop_closure: bool) -> Mapper:
@@ -30,3 +30,23 @@ def test_the_rebuilt_map_is_as_true_as_the_fused_one(ring_ideal):
     fused = map_errors(mapped(ring_ideal, loop_closure=False).segment(), raster, np.eye(4))
     for measure in ("obstacle_f1", "obstacle_precision", "free_precision"):
         assert rebuilt[measure] >= fused[measure] - 0.02, (measure, rebuilt, fused)
+
+
+def test_a_map_saved_mid_run_keeps_its_graph_and_closes_the_loop_later(ring_ideal, tmp_path):
+    config = MapperConfig(loop_closure=LoopClosureConfig(enabled=True), update_obstacles=False)
+    first = Mapper(config=config, offline=True, initial_pose=ring_ideal[0].pose_start)
+    half = corridor_b_end()
+    first.map_scans(s.scan for s in ring_ideal[:half])
+    first.save(tmp_path / "half.npz")
+    saved_edges = len(first.loop_closer.graph.edges)
+    first.loop_closer.close()
+
+    resumed = Mapper.load(tmp_path / "half.npz", offline=True)
+    assert len(resumed.loop_closer.graph) == half
+    assert len(resumed.loop_closer.graph.edges) == saved_edges
+    resumed.map_scans(s.scan for s in ring_ideal[half:])
+    resumed.close_loops()
+    closer = resumed.loop_closer
+    assert any(loop.candidate < half <= loop.query for loop in closer.loops)
+    truth = np.array([s.pose_start for s in ring_ideal])
+    assert ate_rmse(resumed.trajectory().poses, truth, "se2") < 0.05
