@@ -14,14 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanmap.pipelines.fleet import MANIFEST, SUMMARY, file_record, run_fleet
+from scanmap.pipelines.fleet import MANIFEST, SUMMARY, connect, file_record, run_fleet
 from scanmap.pipelines.offline import map_to_folder
 from scanmap_driver import reference_scanner
 from scanmap_driver.processing import process_recording
 from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.simulate import simulate_recording
 
-distributed = pytest.importorskip("distributed")
+pytest.importorskip("distributed")
 
 NAMES = ("a", "b")
 
@@ -49,9 +49,7 @@ def serial(recordings, tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def client():
     """A LocalCluster of two one-thread worker processes, closed after the module."""
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=":0") as cluster, \
-            distributed.Client(cluster) as client:
+    with connect("local:2") as client:
         yield client
 
 
