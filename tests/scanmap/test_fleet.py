@@ -14,9 +14,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanmap.pipelines.fleet import MANIFEST, SUMMARY, connect, file_record, run_fleet
+from scanmap.cli import main
+from scanmap.pipelines.fleet import (
+    MANIFEST,
+    SUMMARY,
+    connect,
+    file_record,
+    fleet_inputs,
+    run_fleet,
+)
 from scanmap.pipelines.offline import map_to_folder
-from scanmap_driver import reference_scanner
+from scanmap_driver import ScanmapError, reference_scanner
 from scanmap_driver.processing import process_recording
 from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.simulate import simulate_recording
@@ -159,3 +167,22 @@ def test_a_worker_killed_mid_task_loses_nothing(client, recordings, serial, tmp_
     assert summary["done"] == list(NAMES) and not summary["failed"]
     for name in NAMES:
         assert_same_processed(serial / "process" / name, tmp_path / name)
+
+
+def test_inputs_are_a_folder_or_a_list_and_names_are_unique(tmp_path):
+    for name in ("r1", "r2", ".hidden"):
+        (tmp_path / "fleet" / name).mkdir(parents=True)
+    assert fleet_inputs(tmp_path / "fleet") == [tmp_path / "fleet" / n for n in ("r1", "r2")]
+    listing = tmp_path / "list.txt"
+    listing.write_text("# tonight\nfleet/r2\n\nfleet/r1\n")
+    assert fleet_inputs(listing) == [tmp_path / "fleet" / n for n in ("r2", "r1")]
+    listing.write_text("fleet/r1\nother/r1\n")
+    with pytest.raises(ScanmapError, match=r"names used twice: \['r1'\]"):
+        fleet_inputs(listing)
+
+
+def test_an_unknown_cluster_is_a_clear_error(tmp_path, capsys):
+    (tmp_path / "fleet" / "r1").mkdir(parents=True)
+    assert main(["fleet", "process", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"),
+                 "--cluster", "yarn"]) == 1
+    assert "--cluster 'yarn': expected local, local:N" in capsys.readouterr().err
