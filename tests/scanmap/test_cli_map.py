@@ -23,7 +23,7 @@ def test_a_recording_becomes_a_map_with_its_errors(office_recording, tmp_path, c
     assert main(["map", str(office_recording), "--out", str(out)]) == 0
     printed = capsys.readouterr()
     assert "1 scans mapped" in printed.out and "range error" in printed.out
-    assert "1/1 scans" in printed.err  # the progress bar
+    assert "1/1 [" in printed.err and "scan 0: initialised" in printed.err  # tqdm progress
 
     report = json.loads((out / "report.json").read_text())
     assert report["input"] == {"path": str(office_recording), "kind": "recording", "scans": 1,
