@@ -13,8 +13,10 @@ closure's own worker thread, all started from the first reference pose:
   into a wall as the registration benchmark's peers do.
 
 Figures: ATE RMSE after SE(2) alignment, mean error of 1 m relative motions, median wall
-time per scan (registration + the caller's part of loop closure), and the loop closer's
-optimisation times (in its thread). Run: `.venv/bin/python -m benchmarks.bench_loop_closure`.
+time per scan (registration + the caller's part of loop closure), the loop closer's
+optimisation times (in its thread), and the time to rebuild the 2.5D grid from every
+scan's kept points at the corrected poses (`rebuild_grid`, what the Mapper does after an
+optimisation). Run: `.venv/bin/python -m benchmarks.bench_loop_closure`.
 """
 
 from __future__ import annotations
@@ -23,12 +25,16 @@ import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # before Open3D loads: single-threaded peers
 
+import contextlib
+import io
 import time
 
 import numpy as np
 
 from benchmarks.bench_registration import Sequence, _scores, carmen, run_ours
 from scanmap.graph import LoopCloser, LoopClosureConfig
+from scanmap.grid.height_grid import GridConfig
+from scanmap.mapping.mapper import rebuild_grid
 from scanmap.registration import ScanOdometry
 
 LOGS = ("intel", "aces", "fhw", "freiburg-101", "belgioioso", "edmonton", "acapulco")
@@ -69,15 +75,17 @@ def run_kiss_slam(seq: Sequence, split: float = 10.0) -> tuple[np.ndarray, list[
     config.occupancy_mapper.max_range = seq.max_range
     slam = KissSLAM(config)
     seconds = []
-    for k in range(len(seq.scans)):
-        points = seq.peer_points(k)
-        start = time.perf_counter()
-        if k:
-            slam.odometry.last_delta = seq.odometry_step(k)
-        slam.process_scan(points, np.zeros(len(points)))
-        seconds.append(time.perf_counter() - start)
-    slam.generate_new_node()  # closes the last local map, as its pipeline does at the end
-    poses, _ = slam.fine_grained_optimization()
+    with contextlib.redirect_stdout(io.StringIO()):  # it prints every closure it tries
+        for k in range(len(seq.scans)):
+            points = seq.peer_points(k)
+            start = time.perf_counter()
+            if k:
+                slam.odometry.last_delta = seq.odometry_step(k)
+            slam.process_scan(points, np.zeros(len(points)))
+            seconds.append(time.perf_counter() - start)
+        slam.generate_new_node()  # closes the last local map, as its pipeline does at the end
+        poses, _ = slam.fine_grained_optimization()
+    print(f"KISS-SLAM on {seq.name}: {len(slam.get_closures())} loops closed")
     return np.array([seq.reference[0] @ p for p in poses])[:len(seq.scans)], seconds
 
 
@@ -89,7 +97,8 @@ def compare(seq: Sequence) -> dict:
            "loops": len(closer.loops), "optimisations": len(closer.optimise_seconds),
            "optimise_median_s": float(np.median(closer.optimise_seconds))
            if closer.optimise_seconds else None,
-           "optimise_max_s": max(closer.optimise_seconds, default=None)}
+           "optimise_max_s": max(closer.optimise_seconds, default=None),
+           "rebuild_s": rebuild_seconds(seq, poses)}
     peers = {"ours without loop closure": _scores(*run_ours(seq), seq)}
     try:
         peers["KISS-SLAM"] = _scores(*run_kiss_slam(seq), seq)
@@ -98,6 +107,18 @@ def compare(seq: Sequence) -> dict:
     row["error"], row["error_unit"] = row["ate_m"], "m, ATE RMSE (SE(2)-aligned)"
     row["peers"] = peers
     return row
+
+
+def rebuild_seconds(seq: Sequence, poses: np.ndarray) -> float:
+    """Wall time of `rebuild_grid` over every scan of `seq` at `poses` (laser 0.3 m up)."""
+    contributions = []
+    for scan in seq.scans:
+        points = scan.points.astype(np.float32)
+        contributions.append((points, np.broadcast_to(np.float32([0.0, 0.0, 0.3]),
+                                                      points.shape), float(scan.stamp)))
+    start = time.perf_counter()
+    rebuild_grid(GridConfig(max_range=seq.max_range), poses, contributions)
+    return time.perf_counter() - start
 
 
 def run(quick: bool = False, only: str | None = None) -> list[dict]:
