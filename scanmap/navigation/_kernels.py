@@ -406,13 +406,13 @@ def _nearest_record(qx, qy, boxes, nearest, ix, iy, geo, best):
     inner = (k // width - 1 - iy) ** 2 + (k % width - 1 - ix) ** 2  # cells squared
     gx, gy = (qx - ox) / res - 0.5, (qy - oy) / res - 0.5  # query, cell-centre units
     reach = math.sqrt(best) / res + CELL_REACH
-    for y in range(max(math.floor(gy - reach), 0), min(int(gy + reach) + 2, ny)):
+    for y in range(max(math.ceil(gy - reach), 0), min(math.floor(gy + reach), ny - 1) + 1):
         reach = math.sqrt(best) / res + CELL_REACH
         rest = reach * reach - (y - gy) * (y - gy)
         if rest < 0.0:
             continue
         w = math.sqrt(rest)
-        x_lo, x_hi = max(math.floor(gx - w), 0), min(int(gx + w) + 1, nx - 1)
+        x_lo, x_hi = max(math.ceil(gx - w), 0), min(math.floor(gx + w), nx - 1)
         hole = inner - (y - iy) * (y - iy)  # cells with (x - ix)^2 < hole are free
         if hole > 0:
             skip = math.ceil(math.sqrt(hole)) - 1
