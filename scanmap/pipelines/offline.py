@@ -47,6 +47,7 @@ from scanmap_driver.scanner_model import ScannerModel
 from scanmap_driver.sim import ScanTruth, TruthRaster, truth_path
 
 REPORT_FORMAT = "scanmap.map_report/1"
+OBSTACLE_THRESH = 0.5  # occupancy at which a saved map cell is occupied: every obstacle
 OFFLINE_CONFIG = MapperConfig(update_obstacles=False, keep_points=0.01)
 
 
@@ -165,7 +166,10 @@ def write_products(mapper: Mapper, seg: Segmentation, out: Path) -> dict[str, st
     """map.npz, map.yaml + map.pgm, trajectory.tum, overhead.png, occupancy.png."""
     mapper.save(out / "map.npz", segmentation=seg)
     occupancy = occupancy_grid(seg)
-    save_ros_map(out / "map.yaml", occupancy, seg.resolution, seg.origin)
+    # Every obstacle cell (p > 0.5) is written occupied: a planner that crosses unknown
+    # space (Nav2's allow_unknown) must never meet an obstacle written as unknown.
+    save_ros_map(out / "map.yaml", occupancy, seg.resolution, seg.origin,
+                 occupied_thresh=OBSTACLE_THRESH)
     trajectory = mapper.trajectory()
     write_tum(out / "trajectory.tum", trajectory)
     points, _ = mapper.kept_points()

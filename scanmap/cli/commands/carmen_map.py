@@ -19,6 +19,7 @@ from scanmap.pipelines.carmen_map import (
     fuse_carmen,
     occupied_cells_per_reading,
 )
+from scanmap.pipelines.offline import OBSTACLE_THRESH
 from scanmap_driver.errors import MapError
 from scanmap_driver.files import atomic_path
 
@@ -53,7 +54,7 @@ def _carmen_map(args: argparse.Namespace) -> int:
     seg = carmen_segmentation(grid)
     name = args.log.name.split(".")[0]
     pgm = save_ros_map(args.out / f"{name}.yaml", occupancy_grid(seg), seg.resolution,
-                       seg.origin)
+                       seg.origin, occupied_thresh=OBSTACLE_THRESH)
     png = args.out / f"{name}.png"
     with atomic_path(png) as tmp:
         if not cv2.imwrite(str(tmp.with_suffix(".png")), read_pgm(pgm).astype("uint8")):
