@@ -1,7 +1,9 @@
 """File helpers shared by every writer and reader: atomic writes and safe npz/JSON loads.
 
 Nothing recorded or mapped is lost: files are written to a temporary name in the same
-folder and renamed over the target, so a reader never sees a half-written file.
+folder, flushed to the disk (fsync), renamed over the target, and the folder is flushed
+too, so a reader (after a crash or a power cut as well) finds the old file or the new
+one, never a half-written one.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 
 from .errors import ScanmapError
 
+_MAX_INT_DIGITS = 300  # float64 reaches 1.8e308
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
@@ -35,9 +38,34 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual mode
     try:
         yield tmp
-        os.replace(tmp, target)
+        publish(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def fsync_file(path: str | os.PathLike[str]) -> None:
+    """Flush a closed file's data to the disk."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def fsync_folder(folder: str | os.PathLike[str]) -> None:
+    """Flush a folder's entries (a rename, a new or removed file) to the disk."""
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def publish(tmp: str | os.PathLike[str], target: str | os.PathLike[str]) -> None:
+    """Make the finished file `tmp` durable and rename it over `target` (same folder)."""
+    fsync_file(tmp)
+    os.replace(tmp, target)
+    fsync_folder(Path(target).parent)
 
 
 def write_json(path: str | os.PathLike[str], data: Any) -> None:
@@ -49,11 +77,22 @@ def write_json(path: str | os.PathLike[str], data: Any) -> None:
 def read_json(path: str | os.PathLike[str], error: type[ScanmapError]) -> Any:
     """Read a JSON file, raising `error` that names the file when it is missing or malformed."""
     try:
-        return json.loads(Path(path).read_text())
+        text = Path(path).read_bytes().decode()
     except FileNotFoundError:
         raise error(f"{path}: file not found") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: cannot read the file ({exc})") from None
+    try:
+        return json.loads(text, parse_int=_json_int)
+    except (ValueError, RecursionError) as exc:  # JSONDecodeError, an over-long integer
         raise error(f"{path}: not valid JSON ({exc})") from None
+
+
+def _json_int(digits: str) -> int:
+    """A JSON integer that also fits a float (a longer one is damage, not a value)."""
+    if len(digits.lstrip("-")) > _MAX_INT_DIGITS:
+        raise ValueError(f"integer of {len(digits)} digits")
+    return int(digits)
 
 
 def save_npz(path: str | os.PathLike[str], **arrays: np.ndarray) -> None:

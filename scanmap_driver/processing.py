@@ -3,7 +3,9 @@
 For each scan of the recording, in order: `scan_NNNN.npz` and `scan_NNNN.ply` (points in
 `base_link`) and one `summary.json` for the run (frames, points, headings covered, lines
 rejected and why). A damaged video keeps the scans and frames before the damage: the scan
-is assembled from the good frames, marked incomplete, and the error is reported.
+is assembled from the good frames, marked incomplete, and the error is reported. A scan
+whose recorder was killed mid-scan is recovered from its journal (`recording.py`) and
+reported with the number of frames recovered.
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ def recording_scans(recording: Recording, model: ScannerModel | None = None
                 assembler.add_frame(frame.image, frame.time)
         except RecordingError as exc:
             error = str(exc)
+        if record.recovered and error is None:
+            error = (f"{record.sidecar}: the recorder stopped mid-scan; recovered "
+                     f"{record.frame_times.shape[0]} frames written before it stopped")
         scan, summary = assembler.finish(record.index, record.odom_start, record.odom_end)
         if error or not record.complete:
             summary.complete = False

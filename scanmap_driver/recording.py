@@ -36,9 +36,14 @@ A recording is a folder (docs/architecture.md):
 
 Times are seconds from the start of the recording. Every file is written under a
 temporary name and renamed; the index is rewritten after each scan, so a crash keeps every
-finished scan. Reading checks every field (a `RecordingError` names the file and field),
-and a corrupt or truncated video yields its good frames before the `RecordingError` that
-names the file and the frame.
+finished scan. While a scan is recorded its video grows as `scan_NNNN.avi.part` (a valid
+AVI prefix) beside a journal `scan_NNNN.journal` (JSON lines: a header with index,
+video, stamp and exposure, then `{"t": time}` per frame written and `{"motor": {...}}` per
+motor command), both flushed frame by frame; a recorder killed mid-scan leaves them, and
+`Recording.open` recovers that scan (complete: false, recovered: true) with every frame
+written before the kill. Reading checks every field (a `RecordingError` names the file
+and field), and a corrupt or truncated video yields its good frames before the
+`RecordingError` that names the file and the frame.
 
 The AVI container (RIFF, AVI 1.0 with an `idx1` index) is written here rather than by
 `cv2.VideoWriter`, which would decode and re-encode the webcam's JPEGs (a second lossy
@@ -47,12 +52,13 @@ step, and 4:2:0 chroma where webcams send 4:2:2); OpenCV and FFmpeg read the fil
 
 from __future__ import annotations
 
-import contextlib
+import itertools
+import json
 import math
 import os
 import struct
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -60,7 +66,7 @@ import cv2
 import numpy as np
 
 from .errors import CalibrationError, RecordingError
-from .files import atomic_path, read_json, write_json
+from .files import fsync_folder, publish, read_json, write_json
 from .scanner_model import ScannerModel
 from .transforms import se2_to_pose
 from .validate import check_keys, integer, number, vector
@@ -69,10 +75,15 @@ FORMAT = "scanmap.recording/1"
 SCAN_FORMAT = "scanmap.recording.scan/1"
 INDEX_NAME = "recording.json"
 GROUND_TRUTH = "ground_truth"
+JOURNAL_FORMAT = "scanmap.recording.journal/1"
+PARTIAL_SUFFIX = ".part"
+JOURNAL_SUFFIX = ".journal"
 DEFAULT_JPEG_QUALITY = 95  # for frames handed over decoded (BGR)
 
 _KEYFRAME = 0x10
 _HAS_INDEX = 0x10
+_OPEN_SIZE = 0xFFFFFFFE  # the size of a list still being written (the file's end)
+_MAX_LIST_DEPTH = 4  # 'movi' inside RIFF, 'rec ' inside 'movi': deeper nesting is damage
 
 
 def scan_name(index: int) -> str:
@@ -110,8 +121,15 @@ class AviWriter:
         self._size = (width, height)
         self._rate = frame_rate
         self._index: list[tuple[int, int]] = []  # (offset from 'movi', size)
-        self._stream.write(b"\0" * (12 + len(_headers(width, height, frame_rate, 0, 0)) + 12))
+        self._stream.write(self._prefix(_OPEN_SIZE, _OPEN_SIZE))  # readable while it grows
         self._movi_start = self._stream.tell() - 4  # position of the 'movi' fourcc
+
+    def _prefix(self, riff_size: int, movi_size: int) -> bytes:
+        """RIFF header, `hdrl` and the head of the 'movi' list."""
+        largest = max((size for _, size in self._index), default=0)
+        headers = _headers(*self._size, self._rate, len(self._index), largest)
+        return (b"RIFF" + struct.pack("<I", riff_size) + b"AVI " + headers
+                + b"LIST" + struct.pack("<I", movi_size) + b"movi")
 
     @property
     def frames(self) -> int:
@@ -131,12 +149,8 @@ class AviWriter:
                          for offset, size in self._index)
         self._stream.write(_chunk(b"idx1", index))
         total = self._stream.tell()
-        largest = max((size for _, size in self._index), default=0)
-        headers = _headers(*self._size, self._rate, len(self._index), largest)
         self._stream.seek(0)
-        self._stream.write(b"RIFF" + struct.pack("<I", total - 8) + b"AVI " + headers
-                           + b"LIST" + struct.pack("<I", end_of_movi - self._movi_start)
-                           + b"movi")
+        self._stream.write(self._prefix(total - 8, end_of_movi - self._movi_start))
         self._stream.seek(total)
 
 
@@ -156,7 +170,10 @@ def read_avi_frames(path: str | os.PathLike[str]) -> Iterator[bytes]:
     yield from _movi_frames(path, data, 12, len(data), in_movi=False)
 
 
-def _movi_frames(path: Path, data: bytes, start: int, end: int, in_movi: bool) -> Iterator[bytes]:
+def _movi_frames(path: Path, data: bytes, start: int, end: int, in_movi: bool,
+                 depth: int = 1) -> Iterator[bytes]:
+    if depth > _MAX_LIST_DEPTH:
+        raise RecordingError(f"{path}: lists nested deeper than {_MAX_LIST_DEPTH} (damaged)")
     pos = start
     while pos + 8 <= end:
         fourcc = data[pos:pos + 4]
@@ -166,7 +183,7 @@ def _movi_frames(path: Path, data: bytes, start: int, end: int, in_movi: bool) -
             kind = data[body:body + 4]
             stop = min(body + size, end)
             if kind in (b"movi", b"rec "):
-                yield from _movi_frames(path, data, body + 4, stop, True)
+                yield from _movi_frames(path, data, body + 4, stop, True, depth + 1)
             if body + size > len(data):
                 raise RecordingError(f"{path}: the file is truncated inside its "
                                      f"{kind.decode(errors='replace')!r} list")
@@ -207,6 +224,7 @@ class ScanRecord:
     motor_log: tuple[dict, ...]
     odometry_start: np.ndarray | None  # (x, y, yaw) in `odom`
     odometry_end: np.ndarray | None
+    recovered: bool = False  # rebuilt from the journal of a recorder killed mid-scan
 
     @property
     def odom_start(self) -> np.ndarray:
@@ -267,9 +285,16 @@ class Recording:
             item = check_keys(entry, f"{where}: scans[{i}]", RecordingError,
                               ["index", "video", "sidecar", "frames"])
             scans.append(_read_sidecar(folder, item, f"{where}: scans[{i}]"))
+        indexed = {record.index for record in scans}
+        for journal in sorted(folder.glob(f"scan_*{JOURNAL_SUFFIX}")):
+            record = _recover(folder, journal)
+            if record.index not in indexed:
+                scans.append(record)
         for key in ("software", "extra"):
             if not isinstance(top.get(key, {}), dict):
                 raise RecordingError(f"{where}: {key}: expected an object")
+        if not isinstance(top["source"], str):
+            raise RecordingError(f"{where}: source: expected a string")
         return cls(folder, model, dict(top["software"]), str(top["source"]), tuple(scans),
                    dict(top.get("extra", {})))
 
@@ -296,7 +321,10 @@ class Recording:
         record = self.scan(index)
         shape = (self.model.camera.height, self.model.camera.width)
         count = 0
-        for count, jpeg in enumerate(read_avi_frames(record.video), start=1):
+        jpegs = read_avi_frames(record.video)
+        if record.recovered:  # the video may hold the start of one more frame
+            jpegs = itertools.islice(jpegs, record.frame_times.shape[0])
+        for count, jpeg in enumerate(jpegs, start=1):
             where = f"{record.video}: frame {count - 1}"
             if count > record.frame_times.shape[0]:
                 raise RecordingError(f"{record.video}: more frames than the "
@@ -309,16 +337,65 @@ class Recording:
                                  f"{record.frame_times.shape[0]} frames (truncated?)")
 
 
+def _recover(folder: Path, journal: Path) -> ScanRecord:
+    """The scan a recorder killed mid-scan left: its journal's frames, complete: false."""
+    try:
+        text = journal.read_bytes().decode()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RecordingError(f"{journal}: cannot read the journal ({exc})") from None
+    lines = text.split("\n")[:-1]  # the last piece lacks its newline: cut by the kill
+    if not lines:
+        raise RecordingError(f"{journal}: the journal has no header line")
+    entries = []
+    for number_, line in enumerate(lines, start=1):
+        try:
+            entries.append(json.loads(line))
+        except ValueError:
+            raise RecordingError(f"{journal}: line {number_}: not valid JSON") from None
+    head = check_keys(entries[0], f"{journal}: line 1", RecordingError,
+                      ["format", "index", "video", "stamp", "exposure"])
+    if head["format"] != JOURNAL_FORMAT:
+        raise RecordingError(f"{journal}: line 1: format: expected {JOURNAL_FORMAT!r}")
+    index = integer(head["index"], f"{journal}: line 1: index", RecordingError, low=0)
+    video = head["video"]
+    if video != f"{scan_name(index)}.avi":
+        raise RecordingError(f"{journal}: line 1: video: expected {scan_name(index)}.avi")
+    sidecar = {"format": SCAN_FORMAT, "index": index, "video": video, "complete": False,
+               "stamp": head["stamp"], "exposure": head["exposure"], "frame_times": [],
+               "motor_log": []}
+    for number_, entry in enumerate(entries[1:], start=2):
+        if isinstance(entry, dict) and entry.keys() == {"t"}:
+            sidecar["frame_times"].append(entry["t"])
+        elif isinstance(entry, dict) and entry.keys() == {"motor"}:
+            sidecar["motor_log"].append(entry["motor"])
+        else:
+            raise RecordingError(f"{journal}: line {number_}: expected {{\"t\": time}} or "
+                                 f"{{\"motor\": command}}")
+    partial = folder / (video + PARTIAL_SUFFIX)
+    name = partial.name if partial.is_file() else video
+    entry = {"index": index, "video": name, "sidecar": journal.name,
+             "frames": len(sidecar["frame_times"])}
+    record = _check_sidecar(folder, entry, sidecar | {"video": name}, str(journal),
+                            str(journal))
+    return replace(record, recovered=True)
+
+
 def _read_sidecar(folder: Path, entry: dict, where: str) -> ScanRecord:
-    index = integer(entry["index"], f"{where}.index", RecordingError, low=0)
+    integer(entry["index"], f"{where}.index", RecordingError, low=0)
     for key in ("video", "sidecar"):
         name = entry[key]
         if not isinstance(name, str) or Path(name).name != name:
             raise RecordingError(f"{where}.{key}: expected a file name in the folder, "
                                  f"got {name!r}")
     path = folder / entry["sidecar"]
-    data = read_json(path, RecordingError)
-    side = str(path)
+    return _check_sidecar(folder, entry, read_json(path, RecordingError), str(path), where)
+
+
+def _check_sidecar(folder: Path, entry: dict, data: Any, side: str, where: str
+                   ) -> ScanRecord:
+    """Validate a scan's sidecar `data` (read from `side`) against its index `entry`."""
+    path = Path(side)
+    index = entry["index"]
     top = check_keys(data, side, RecordingError,
                      ["format", "index", "video", "stamp", "frame_times", "motor_log"],
                      ["complete", "exposure", "odometry"])
@@ -371,7 +448,10 @@ def _read_sidecar(folder: Path, entry: dict, where: str) -> ScanRecord:
 
 class ScanWriter:
     """Collects one scan: frames (JPEG bytes or BGR images) with times, the motor log and
-    odometry. Use it as a context manager from `RecordingWriter.scan`."""
+    odometry. Use it as a context manager from `RecordingWriter.scan`.
+
+    Every frame reaches the partial video and the journal before `add_jpeg` returns, so a
+    recorder killed mid-scan keeps it (module docstring)."""
 
     def __init__(self, owner: RecordingWriter, index: int, stamp: float,
                  exposure: float | None) -> None:
@@ -382,14 +462,23 @@ class ScanWriter:
         self.frame_times: list[float] = []
         self.motor_log: list[dict] = []
         self.odometry: tuple[np.ndarray, np.ndarray] | None = None
-        self._stack = contextlib.ExitStack()
         name = scan_name(index)
         self.video = owner.path / f"{name}.avi"
         self.sidecar = owner.path / f"{name}.json"
-        tmp = self._stack.enter_context(atomic_path(self.video))
-        stream = self._stack.enter_context(open(tmp, "wb"))
+        self._partial = owner.path / f"{name}.avi{PARTIAL_SUFFIX}"
+        self._journal_path = owner.path / f"{name}{JOURNAL_SUFFIX}"
+        self._stream = open(self._partial, "wb")
+        self._journal = open(self._journal_path, "w")
         cam = owner.model.camera
-        self._avi = AviWriter(stream, cam.width, cam.height, cam.frame_rate)
+        self._avi = AviWriter(self._stream, cam.width, cam.height, cam.frame_rate)
+        self._stream.flush()
+        self._note({"format": JOURNAL_FORMAT, "index": index, "video": self.video.name,
+                    "stamp": self.stamp, "exposure": exposure})
+
+    def _note(self, entry: dict) -> None:
+        """Append one line to the journal and hand it to the OS (a kill keeps it)."""
+        self._journal.write(json.dumps(entry) + "\n")
+        self._journal.flush()
 
     def add_jpeg(self, jpeg: bytes, time: float) -> None:
         """One frame as the camera's JPEG bytes (kept byte for byte)."""
@@ -397,7 +486,9 @@ class ScanWriter:
             raise RecordingError(f"{self.video}: frame time {time} is not finite or does not "
                                  f"increase")
         self._avi.write(jpeg)
+        self._stream.flush()
         self.frame_times.append(float(time))
+        self._note({"t": float(time)})
 
     def add_image(self, image: np.ndarray, time: float,
                   quality: int = DEFAULT_JPEG_QUALITY) -> None:
@@ -410,7 +501,9 @@ class ScanWriter:
 
     def log_motor(self, time: float, command: str, **fields: Any) -> None:
         """Record a motor command at a recording time."""
-        self.motor_log.append({"t": float(time), "command": command, **fields})
+        entry = {"t": float(time), "command": command, **fields}
+        self.motor_log.append(entry)
+        self._note({"motor": entry})
 
     def set_odometry(self, start: np.ndarray, end: np.ndarray) -> None:
         """Odometry (x, y, yaw) of `base_link` in `odom` at the first and last frame."""
@@ -420,9 +513,11 @@ class ScanWriter:
         return self
 
     def __exit__(self, kind, value, traceback) -> None:
-        """Finish the video and the sidecar, also after a fault (then complete: false)."""
+        """Finish the video and the sidecar, also after a fault (then complete: false);
+        the journal goes once the index lists the scan."""
         self._avi.close()
-        self._stack.close()
+        self._stream.close()
+        publish(self._partial, self.video)
         sidecar = {
             "format": SCAN_FORMAT, "index": self.index, "video": self.video.name,
             "complete": kind is None, "stamp": self.stamp, "exposure": self.exposure,
@@ -433,6 +528,9 @@ class ScanWriter:
         }
         write_json(self.sidecar, sidecar)
         self._owner._finished(self)
+        self._journal.close()
+        self._journal_path.unlink()
+        fsync_folder(self._owner.path)
 
 
 class RecordingWriter:
