@@ -3,7 +3,9 @@
 `calibrate_camera(images, board)` finds the board in every image, rejects the images
 where it is missing or unusable (and says why), fits the pinhole model with OpenCV's
 5-coefficient distortion (k1, k2, p1, p2, k3) and returns the `CameraIntrinsics` with the
-reprojection errors and the parameters' standard deviations.
+reprojection errors and the parameters' standard deviations. `write_opencv_yaml` saves
+it as OpenCV's calibration sample does (camera_matrix, distortion_coefficients,
+avg_reprojection_error, per_view_reprojection_errors), for OpenCV users and tools.
 
 The data must pin the focal length down: views that all show the board in the same
 orientation, or all facing the camera squarely, cannot (planar calibration needs the
@@ -23,6 +25,7 @@ import cv2
 import numpy as np
 
 from ..errors import CalibrationError
+from ..files import atomic_path
 from ..scanner_model import CameraIntrinsics
 from .boards import BoardNotFound, BoardView, CharucoBoard, Chessboard
 
@@ -181,6 +184,28 @@ def calibrate_views(views: Sequence[BoardView], size: tuple[int, int], names: Se
     return IntrinsicsCalibration(
         camera=camera, rms=float(rms), per_image_rms=tuple(map(float, per_view.ravel())),
         images=tuple(names), rejected=(), sigma=tuple(float(s) for s in sigma))
+
+
+def write_opencv_yaml(result: IntrinsicsCalibration, path: str | os.PathLike[str]) -> None:
+    """Write `result` as an OpenCV calibration file (cv2.FileStorage YAML, atomically):
+    image_width, image_height, nr_of_frames, camera_matrix, distortion_coefficients
+    (k1 k2 p1 p2 k3), avg_reprojection_error (px rms over all corners) and
+    per_view_reprojection_errors (px rms per image, in `result.images` order)."""
+    cam = result.camera
+    with atomic_path(path) as tmp:
+        store = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
+        try:
+            store.write("image_width", cam.width)
+            store.write("image_height", cam.height)
+            store.write("nr_of_frames", result.image_count)
+            store.write("camera_matrix", np.array(
+                [[cam.fx, 0.0, cam.cx], [0.0, cam.fy, cam.cy], [0.0, 0.0, 1.0]]))
+            store.write("distortion_coefficients", np.array(cam.distortion).reshape(-1, 1))
+            store.write("avg_reprojection_error", result.rms)
+            store.write("per_view_reprojection_errors",
+                        np.array(result.per_image_rms).reshape(-1, 1))
+        finally:
+            store.release()
 
 
 def _check_orientations(rvecs: Sequence[np.ndarray]) -> None:

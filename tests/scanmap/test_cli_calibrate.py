@@ -6,6 +6,7 @@ import json
 import math
 from dataclasses import replace
 
+import cv2
 import pytest
 
 from scanmap.cli import main
@@ -65,6 +66,13 @@ def test_chessboard_on_the_ciclop_captures(tmp_path):
     camera = ScannerModel.load(out).camera
     assert (camera.width, camera.height) == (960, 1280)
     assert camera.fx == pytest.approx(1429.66, rel=0.005)  # the 3DScanScience notebook
+    # the reprojection errors, beside it as OpenCV writes them
+    stored = cv2.FileStorage(str(tmp_path / "ciclop.camera.yaml"), cv2.FILE_STORAGE_READ)
+    assert stored.getNode("camera_matrix").mat()[0, 0] == pytest.approx(camera.fx)
+    per_view = stored.getNode("per_view_reprojection_errors").mat().ravel()
+    assert per_view.size == 16
+    rms = stored.getNode("avg_reprojection_error").real()
+    assert 0 < rms < 0.3 and per_view.min() <= rms <= per_view.max()
 
 
 def test_refuses_to_overwrite_a_file_that_is_not_a_scanner_model(tmp_path, capsys):
@@ -91,7 +99,7 @@ def test_failed_calibration_writes_nothing(tmp_path, capsys):
     assert main(["calibrate", "camera", *charuco_images()[:2], *CHARUCO_ARGS,
                  "--out", str(out)]) == 1
     assert "found in 2 of 2 images, 3 needed" in capsys.readouterr().err
-    assert not out.exists()
+    assert not out.exists() and not (tmp_path / "camera.camera.yaml").exists()
 
 
 def test_charuco_needs_marker_size(tmp_path, capsys):

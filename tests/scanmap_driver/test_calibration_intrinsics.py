@@ -15,6 +15,7 @@ from scanmap_driver.calibration import (
     Chessboard,
     calibrate_camera,
     calibrate_views,
+    write_opencv_yaml,
 )
 from scanmap_driver.calibration.boards import _view
 from tests.conftest import real_data
@@ -267,6 +268,38 @@ def test_exact_corners_give_the_exact_camera():
     np.testing.assert_allclose(cam.distortion, DIST, atol=1e-3)
     assert result.rms < 1e-3
     assert result.images == tuple(f"v{i}" for i in range(len(TILTED_POSES)))
+
+
+def test_reprojection_errors_are_opencvs_and_are_written_to_the_opencv_yaml(tmp_path):
+    # Corners with 0.3 px noise: the errors are those of cv2.calibrateCamera on the same
+    # corners, and per image those recomputed with cv2.projectPoints from its poses.
+    views = projected_views(Chessboard((9, 7), 0.03), K, DIST)
+    rng = np.random.default_rng(3)
+    views = [BoardView(v.object_points, (v.image_points + rng.normal(0, 0.3, v.image_points.shape)
+                                         ).astype(np.float32)) for v in views]
+    names = [f"v{i}" for i in range(len(views))]
+    result = calibrate_views(views, (W, H), names)
+    objects = [v.object_points.reshape(-1, 3).astype(np.float32) for v in views]
+    pixels = [v.image_points.reshape(-1, 2) for v in views]  # float32: errors agree to 1e-5
+    rms, matrix, dist, rvecs, tvecs = cv2.calibrateCamera(objects, pixels, (W, H), None, None)
+    assert result.rms == pytest.approx(rms, rel=1e-9)
+    squared = [np.sum((cv2.projectPoints(o, r, t, matrix, dist)[0].reshape(-1, 2) - p) ** 2,
+                      axis=1) for o, p, r, t in zip(objects, pixels, rvecs, tvecs, strict=True)]
+    np.testing.assert_allclose(result.per_image_rms, [np.sqrt(e.mean()) for e in squared],
+                               rtol=1e-5)
+    assert np.sqrt(np.concatenate(squared).mean()) == pytest.approx(rms, rel=1e-5)
+    path = tmp_path / "camera.yaml"
+    write_opencv_yaml(result, path)
+    stored = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    np.testing.assert_allclose(stored.getNode("camera_matrix").mat(), matrix, rtol=1e-6)
+    np.testing.assert_allclose(stored.getNode("distortion_coefficients").mat().ravel(),
+                               dist.ravel()[:5], rtol=1e-6, atol=1e-9)
+    assert stored.getNode("avg_reprojection_error").real() == pytest.approx(rms, rel=1e-9)
+    np.testing.assert_allclose(stored.getNode("per_view_reprojection_errors").mat().ravel(),
+                               result.per_image_rms, rtol=1e-12)
+    assert (stored.getNode("image_width").real(), stored.getNode("image_height").real(),
+            stored.getNode("nr_of_frames").real()) == (W, H, len(views))
+    stored.release()
 
 
 def test_principal_point_outside_the_image_is_refused():

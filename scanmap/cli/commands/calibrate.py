@@ -4,7 +4,9 @@ Each target is a subcommand of its own (`camera`: intrinsics from board images; 
 the paper's wall calibration from a recorded scan), added in `register` beside the
 others. They all write a `scanmap.scanner/1` file: an existing one is updated in place
 (only the calibrated part changes), otherwise a new one is made from the reference scanner
-with the calibrated part.
+with the calibrated part. `camera` also writes the intrinsics with their reprojection
+errors (overall and per image) as an OpenCV calibration YAML beside it (`opencv_sidecar`):
+the scanner model has no place for them.
 """
 
 from __future__ import annotations
@@ -14,7 +16,12 @@ import re
 from pathlib import Path
 
 from scanmap_driver import CalibrationError, ScannerModel, reference_scanner
-from scanmap_driver.calibration import CharucoBoard, Chessboard, calibrate_camera
+from scanmap_driver.calibration import (
+    CharucoBoard,
+    Chessboard,
+    calibrate_camera,
+    write_opencv_yaml,
+)
 from scanmap_driver.files import read_json
 from scanmap_driver.scanner_model import FORMAT
 
@@ -57,7 +64,9 @@ def _register_camera(targets: argparse._SubParsersAction) -> None:
                         help="ChArUco board in the layout of OpenCV < 4.6 (matters only for "
                              "an even number of rows)")
     parser.add_argument("--out", required=True, type=Path, metavar="FILE",
-                        help=f"scanner model ({FORMAT}) to update or create")
+                        help=f"scanner model ({FORMAT}) to update or create; the OpenCV "
+                             "calibration YAML with the reprojection errors goes beside it "
+                             "(FILE's stem + .camera.yaml)")
     parser.set_defaults(func=_camera)
 
 
@@ -89,12 +98,21 @@ def _camera(args: argparse.Namespace) -> int:
     for rejected in result.rejected:
         print(f"  rejected {rejected.name}: {rejected.reason}")
     model.with_changes(camera=cam).save(args.out)
+    sidecar = opencv_sidecar(args.out)
+    write_opencv_yaml(result, sidecar)
+    print(f"wrote the OpenCV calibration (with the reprojection errors) to {sidecar}")
     if existing:
         print(f"updated the camera of the scanner model {args.out}")
     else:
         print(f"wrote {args.out}: the reference scanner with this camera (calibrate the "
               "rest of the geometry before scanning)")
     return 0
+
+
+def opencv_sidecar(out: Path) -> Path:
+    """The OpenCV YAML written beside the scanner model `out` (scanner.json ->
+    scanner.camera.yaml)."""
+    return out.with_suffix(".camera.yaml")
 
 
 def _target_model(path: Path) -> tuple[ScannerModel, bool]:
