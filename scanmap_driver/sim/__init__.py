@@ -24,12 +24,16 @@ Public API:
   (`scanmap_driver.recording`) with `ground_truth/` (`truth.ScanTruth`, `raster`);
   `simulate_ideal` writes ideal scans. `scanmap simulate` is the command line.
 * `truth_raster(scene, resolution, low, high)`: `RASTER_OBSTACLE` / `RASTER_FLOOR` /
-  `RASTER_OUTSIDE` per cell. `truth_path(recording, index)`: where a scan's truth lives.
+  `RASTER_DROP_OFF` / `RASTER_OUTSIDE` per cell, with the true floor height and slope.
+  Scenes may hold floor regions at other heights and ramps (`FloorRegion`), glass,
+  mirrors and black surfaces, and moving people (`Person`, `Scene.at_scan`).
+  `truth_path(recording, index)`: where a scan's truth lives.
 """
 
 from .camera_effects import SimCameraConfig
 from .ideal import IdealScan, ideal_scans
 from .plan import ScanPlan, plan_scans
+from .raster import DROP_OFF as RASTER_DROP_OFF
 from .raster import FLOOR as RASTER_FLOOR
 from .raster import OBSTACLE as RASTER_OBSTACLE
 from .raster import OUTSIDE as RASTER_OUTSIDE
@@ -38,6 +42,8 @@ from .render import FrameTruth, LaserAppearance, RenderedFrame, Renderer
 from .scene import (
     Box,
     Cylinder,
+    FloorRegion,
+    Person,
     Scene,
     builtin_scene,
     builtin_scene_names,
@@ -48,14 +54,17 @@ from .simulate import simulate_ideal, simulate_recording
 from .truth import ScanTruth, truth_path
 
 __all__ = [
+    "RASTER_DROP_OFF",
     "RASTER_FLOOR",
     "RASTER_OBSTACLE",
     "RASTER_OUTSIDE",
     "Box",
     "Cylinder",
+    "FloorRegion",
     "FrameTruth",
     "IdealScan",
     "LaserAppearance",
+    "Person",
     "RenderedFrame",
     "Renderer",
     "ScanPlan",

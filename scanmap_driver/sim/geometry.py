@@ -1,14 +1,17 @@
 """Scene geometry for ray casting: triangle meshes with exact planes, in Open3D's RaycastingScene.
 
-Two things are hit: the scene (floor, boxes, cylinders) fixed in `map`, cast with Open3D,
-and the robot's own encoder disk fixed in `base_link`, intersected exactly. Every
-triangle of the scene belongs to a plane (a box face, a cylinder facet, a cap, the floor)
-stored in float64 as (n, d) with n . x = d; Open3D's float32 hits only say which plane a
-ray met, and exact points come from the planes.
+Two things are hit: the scene (floor, floor regions, boxes, cylinders) fixed in `map`,
+cast with Open3D, and the robot's own encoder disk fixed in `base_link`, intersected
+exactly. Every triangle of the scene belongs to a plane (a box face, a cylinder facet, a
+cap, the floor, a floor region's surface or side) stored in float64 as (n, d) with
+n . x = d; Open3D's float32 hits only say which plane a ray met, and exact points come
+from the planes. The floor z = 0 is cut around the floor regions (`floor_pieces`); glass
+objects and regions are left out (nothing hits them).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -17,7 +20,7 @@ import open3d as o3d
 from numba import njit
 
 from ..encoder_disk import EncoderDisk
-from .scene import Box, Cylinder, Scene
+from .scene import Box, Cylinder, FloorRegion, Scene
 from .texture import surface_axes
 
 FLOOR_MARGIN = 60.0  # m of floor beyond the scene on every side
@@ -160,20 +163,85 @@ def _add_cylinder(builder: _Builder, cylinder: Cylinder, owner: int) -> None:
         builder.polygon(cap, owner, np.array([0.0, 0.0, up]))
 
 
+def _distinct(corners: np.ndarray) -> np.ndarray:
+    """The corners of a polygon without repeats of the previous corner (cyclically)."""
+    keep = np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1) > 1e-12
+    return corners[keep]
+
+
+def _span(corners: np.ndarray, x: float) -> tuple[float, float]:
+    """(lowest, highest) y of a convex polygon (K, 2) on the vertical line at x."""
+    ys = []
+    for (ax, ay), (bx, by) in zip(corners, np.roll(corners, -1, axis=0), strict=True):
+        if min(ax, bx) <= x <= max(ax, bx):
+            ys.extend([ay, by] if ax == bx else [ay + (x - ax) * (by - ay) / (bx - ax)])
+    return min(ys), max(ys)
+
+
+def floor_pieces(x0: float, y0: float, x1: float, y1: float,
+                 regions: tuple[FloorRegion, ...]) -> list[np.ndarray]:
+    """Convex pieces (K, 2) covering the rectangle [x0, x1] x [y0, y1] outside the regions
+    (convex, not overlapping): vertical slabs between the regions' corners, in which each
+    region is a trapezoid, and the trapezoids between them."""
+    polygons = [r.corners for r in regions]
+    breaks = sorted({x0, x1, *(float(x) for c in polygons for x in c[:, 0])})
+    pieces = []
+    for xa, xb in itertools.pairwise(breaks):
+        middle = 0.5 * (xa + xb)
+        inside = [c for c in polygons if c[:, 0].min() < middle < c[:, 0].max()]
+        spans = sorted(((_span(c, xa), _span(c, xb)) for c in inside),
+                       key=lambda s: s[0][0] + s[1][0])
+        low_a, low_b = y0, y0
+        for (lo_a, hi_a), (lo_b, hi_b) in [*spans, ((y1, y1), (y1, y1))]:
+            piece = _distinct(np.array([[xa, low_a], [xb, low_b], [xb, lo_b], [xa, lo_a]]))
+            if len(piece) >= 3:
+                pieces.append(piece)
+            low_a, low_b = hi_a, hi_b
+    return pieces
+
+
+def _add_region(builder: _Builder, region: FloorRegion, owner: int) -> None:
+    """A floor region's surface and the vertical faces joining it to the floor z = 0."""
+    corners = region.corners
+    top = np.column_stack([corners, region.height_at(corners[:, 0], corners[:, 1])])
+    builder.polygon(top, owner, np.array([0.0, 0.0, 1.0]))
+    middle = corners.mean(axis=0)
+    raised = top[:, 2].max() > 0.0
+    for i in range(len(corners)):
+        j = (i + 1) % len(corners)
+        face = _distinct(np.array([[*corners[i], 0.0], [*corners[j], 0.0], top[j], top[i]]))
+        if len(face) >= 3:
+            outward = 0.5 * (corners[i] + corners[j]) - middle
+            builder.polygon(face, owner, np.append(outward if raised else -outward, 0.0))
+
+
 def scene_planes(scene: Scene) -> Planes:
-    """The scene's floor and objects as planes; object i of the scene is owner i + 1."""
+    """The scene's floor, objects and floor regions as planes: object i of the scene is owner
+    i + 1, region j owner len(objects) + j + 1, the floor 0. Glass is left out."""
     builder = _Builder()
     low, high = scene.bounds()
     x0, y0 = low - FLOOR_MARGIN
     x1, y1 = high + FLOOR_MARGIN
-    builder.polygon(np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]]),
-                    0, np.array([0.0, 0.0, 1.0]))
+    for piece in floor_pieces(x0, y0, x1, y1, scene.floor_regions):
+        builder.polygon(np.column_stack([piece, np.zeros(len(piece))]), 0,
+                        np.array([0.0, 0.0, 1.0]))
     for index, obj in enumerate(scene.objects, start=1):
+        if obj.material == "glass":
+            continue
         if isinstance(obj, Box):
             _add_box(builder, obj, index)
         else:
             _add_cylinder(builder, obj, index)
+    for index, region in enumerate(scene.floor_regions, start=len(scene.objects) + 1):
+        if region.material != "glass":
+            _add_region(builder, region, index)
     return builder.build()
+
+
+def owner_reflectance(scene: Scene) -> np.ndarray:
+    """Laser reflectance of each plane owner (floor, objects, regions): 0 for a mirror."""
+    owners = (*scene.objects, *scene.floor_regions)
+    return np.array([1.0, *(0.0 if o.material == "mirror" else o.reflectance for o in owners)])
 
 
 def disk_distance(disk: EncoderDisk, origins_base: np.ndarray,
@@ -231,9 +299,12 @@ class World:
         self.scene = scene
         self.disk = disk
         self.world = Raycaster(scene_planes(scene))
-        colors = np.array([scene.floor_color, *(obj.color for obj in scene.objects)],
+        colors = np.array([scene.floor_color, *(obj.color for obj in scene.objects),
+                           *(region.color for region in scene.floor_regions)],
                           dtype=np.float64) / 255.0
         self.plane_albedo = colors[self.world.planes.plane_object]  # (P, 3) RGB 0..1
+        # (P,) share of the laser light returned (0: no stripe)
+        self.plane_reflectance = owner_reflectance(scene)[self.world.planes.plane_object]
         self.plane_axes = surface_axes(self.world.planes.planes[:, :3])  # (P, 2, 3) texture
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray, frame: np.ndarray,

@@ -59,11 +59,13 @@ def ideal_scans(scene: Scene, model: ScannerModel | None = None, *, seed: int = 
     pixel_sigma: peak error (px, along the image line); default the model's.
     heading_sigma: heading error (rad) per frame, as the encoder decoding would add.
     Deterministic for a seed; the same frames as `scanmap simulate` with that seed.
+    The scene's people stand where they are at each scan (`Scene.at_scan`).
     """
     model = model or reference_scanner()
     sigma = model.pixel_sigma if pixel_sigma is None else pixel_sigma
-    world = World(scene, model.encoder)
+    static = None if scene.people else World(scene, model.encoder)
     for plan in plan_scans(scene, model, seed, scans, motor):
+        world = static or World(scene.at_scan(plan.index), model.encoder)
         yield _ideal_scan(world, model, plan, sigma, heading_sigma,
                           stream(seed, _NOISE, plan.index), threads)
 

@@ -62,8 +62,9 @@ class StripePoints:
     """Stripe points of a batch of frames: one row per (frame, column, surface) found.
 
     u is the image column (integer valued), v the subpixel row of the stripe's centre.
-    strength: laser irradiance times the surface's red albedo, relative to albedo 1 at
-    1 m and normal incidence (0 where shadowed).
+    strength: laser irradiance times the surface's red albedo and laser reflectance,
+    relative to albedo 1 at 1 m and normal incidence (0 where shadowed or where the
+    surface returns no laser light: black carpet, a mirror).
     """
 
     frame: np.ndarray  # (M,) int
@@ -86,9 +87,10 @@ class StripePoints:
                                for name in self.__dataclass_fields__})
 
     def strongest_per_column(self) -> np.ndarray:
-        """Mask of the lit point with the highest strength in each (frame, column)."""
+        """Mask of the lit point with the highest strength in each (frame, column); a
+        point that returns no light (strength 0) is never one."""
         mask = np.zeros(len(self), dtype=bool)
-        lit = np.flatnonzero(self.lit)
+        lit = np.flatnonzero(self.lit & (self.strength > 0.0))
         if lit.size:
             order = lit[np.lexsort((-self.strength[lit], self.u[lit], self.frame[lit]))]
             key = self.frame[order] * 1_000_000 + self.u[order].astype(np.int64)
@@ -207,7 +209,8 @@ def stripe_points(world: World, model: ScannerModel, frame: np.ndarray, u: np.nd
     direction_map = transform_per_frame(map_head, frame, direction, False)
     cos_incidence = np.abs(np.einsum("ij,ij->i", world.world.planes.planes[plane, :3],
                                      direction_map))
-    strength = np.where(lit, world.plane_albedo[plane, 0] * cos_incidence
+    strength = np.where(lit, world.plane_albedo[plane, 0] * world.plane_reflectance[plane]
+                        * cos_incidence
                         / np.maximum(distance, 1e-3) ** 2, 0.0)
     points = StripePoints(frame, u, v, headings[frame], plane, head,
                           transform_per_frame(base_head, frame, head, True),

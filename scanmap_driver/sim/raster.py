@@ -1,15 +1,23 @@
-"""The ground-truth 2D raster of a scene: obstacle, floor or outside, per cell.
+"""The ground-truth 2D raster of a scene: obstacle, floor, drop-off or outside, per cell.
 
 For a robot that drives over things lower than `low` (its step height) and under things
 higher than `high` (its height), a cell is an obstacle if any object occupies space between
 the two heights over any part of the cell (exact rectangle and disc overlap tests, no
-sampling); the open cells that the robot can reach from its scan poses (4-connected) are
-floor, and the rest (behind walls, inside closed objects) are outside. Mapping is scored
-against it.
+sampling). The floor height and slope of each cell are those at its centre (the floor
+z = 0 or a floor region's surface). The robot drives from its scan poses into the open
+neighbouring cells (4-connected) whose floor differs by at most `low` and whose slope is
+at most `max_slope`: those are floor. Of the cells it cannot enter, those whose floor lies
+more than `low` below that of the nearest floor cell are a drop-off where they touch the
+floor (with the rest of their lowered area: a hole, a stairwell, the far side of a step
+down); those that touch the floor otherwise (a step up, a ramp too steep) are obstacles;
+and the rest (behind walls, inside closed objects, on a platform) are outside. Glass and
+mirrors are obstacles like any object. Mapping is scored against it.
 
 File (`.npz`, no pickle): `classes` (rows along y from `origin`, columns along x; uint8:
-0 outside, 1 floor, 2 obstacle), `origin` (x, y of the lower-left corner, m),
-`resolution` (m), `band` (low, high, m), `format_version`.
+0 outside, 1 floor, 2 obstacle, 3 drop-off), `floor_height` and `slope` (float32, m and
+rad), `origin` (x, y of the lower-left corner, m), `resolution` (m), `band` (low, high,
+m), `max_slope` (rad), `format_version` (2; version 1 files, without drop-offs and floor
+heights, read as a flat floor).
 """
 
 from __future__ import annotations
@@ -25,8 +33,10 @@ from ..errors import MapError
 from ..files import load_npz, save_npz
 from .scene import Box, Cylinder, Scene
 
-OUTSIDE, FLOOR, OBSTACLE = 0, 1, 2
-FORMAT_VERSION = 1
+OUTSIDE, FLOOR, OBSTACLE, DROP_OFF = 0, 1, 2, 3
+FORMAT_VERSION = 2
+MAX_SLOPE = math.radians(15.0)  # the steepest floor the robot drives on (FloorConfig's)
+_FOUR = ndimage.generate_binary_structure(2, 1)
 
 
 @dataclass(frozen=True)
@@ -38,6 +48,9 @@ class TruthRaster:
     origin: np.ndarray
     resolution: float
     band: tuple[float, float]
+    floor_height: np.ndarray | None = None  # (rows, cols) float32, m
+    slope: np.ndarray | None = None  # (rows, cols) float32, rad
+    max_slope: float = MAX_SLOPE
 
     def cell_of(self, xy: np.ndarray) -> np.ndarray:
         """(N, 2) integer (row, col) of `map` points (may lie outside the raster)."""
@@ -46,25 +59,34 @@ class TruthRaster:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the raster as `.npz` (atomically)."""
+        flat = np.zeros(self.classes.shape, np.float32)
         save_npz(path, format_version=np.array(FORMAT_VERSION), classes=self.classes,
                  origin=self.origin, resolution=np.array(self.resolution),
-                 band=np.array(self.band))
+                 band=np.array(self.band), max_slope=np.array(self.max_slope),
+                 floor_height=flat if self.floor_height is None else self.floor_height,
+                 slope=flat if self.slope is None else self.slope)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> TruthRaster:
         """Read a raster written by `save`."""
         arrays = load_npz(path, MapError,
                           required=("format_version", "classes", "origin", "resolution", "band"))
-        if int(arrays["format_version"]) != FORMAT_VERSION:
-            raise MapError(f"{path}: format_version {int(arrays['format_version'])} is not "
-                           f"{FORMAT_VERSION}")
-        return cls(arrays["classes"], arrays["origin"], float(arrays["resolution"]),
-                   (float(arrays["band"][0]), float(arrays["band"][1])))
+        version = int(arrays["format_version"])
+        if version not in (1, FORMAT_VERSION):
+            raise MapError(f"{path}: format_version {version} is not 1 or {FORMAT_VERSION}")
+        band = (float(arrays["band"][0]), float(arrays["band"][1]))
+        if version == 1:
+            return cls(arrays["classes"], arrays["origin"], float(arrays["resolution"]), band)
+        extra = load_npz(path, MapError, required=("floor_height", "slope", "max_slope"))
+        return cls(arrays["classes"], arrays["origin"], float(arrays["resolution"]), band,
+                   extra["floor_height"], extra["slope"], float(extra["max_slope"]))
 
 
 def truth_raster(scene: Scene, resolution: float = 0.05, low: float = 0.05,
-                 high: float = 1.0, margin: float = 0.5) -> TruthRaster:
-    """The raster of `scene` for a robot's height band [low, high] (m)."""
+                 high: float = 1.0, margin: float = 0.5,
+                 max_slope: float = MAX_SLOPE) -> TruthRaster:
+    """The raster of `scene` for a robot's height band [low, high] (m) that drives on
+    slopes up to `max_slope` (rad). People are left out (use `scene.at_scan(i)`)."""
     if not (resolution > 0.0 and 0.0 <= low < high):
         raise ValueError(f"expected resolution > 0 and 0 <= low < high, got {resolution}, "
                          f"{low}, {high}")
@@ -89,12 +111,39 @@ def truth_raster(scene: Scene, resolution: float = 0.05, low: float = 0.05,
         overlap = (_box_overlaps(obj, x, y, half) if isinstance(obj, Box)
                    else _disc_overlaps(obj, x, y, half))
         obstacle[r0:r1, c0:c1] |= overlap
-    labels, _ = ndimage.label(~obstacle)
+    height, slope = scene.floor_at(*np.meshgrid(centres_x, centres_y))
     inside = np.floor((scene.scan_poses[:, :2] - origin) / resolution).astype(int)
-    reached = labels[inside[:, 1], inside[:, 0]]
-    classes = np.where(np.isin(labels, reached[reached > 0]), FLOOR, OUTSIDE).astype(np.uint8)
+    floor = _drivable(height, ~obstacle & (slope <= max_slope), inside[:, 1], inside[:, 0], low)
+    classes = np.where(floor, FLOOR, OUTSIDE).astype(np.uint8)
+    touching = ndimage.binary_dilation(floor, _FOUR) & ~floor & ~obstacle
+    _, (near_y, near_x) = ndimage.distance_transform_edt(~floor, return_indices=True)
+    lowered = ~floor & ~obstacle & (height < height[near_y, near_x] - low)
+    labels, _ = ndimage.label(lowered)
+    drop = np.isin(labels, np.unique(labels[touching & lowered])) & lowered
+    classes[touching & ~lowered] = OBSTACLE
     classes[obstacle] = OBSTACLE
-    return TruthRaster(classes, origin, float(resolution), (float(low), float(high)))
+    classes[drop] = DROP_OFF
+    return TruthRaster(classes, origin, float(resolution), (float(low), float(high)),
+                       height.astype(np.float32), slope.astype(np.float32), float(max_slope))
+
+
+def _drivable(height: np.ndarray, open_: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+              step: float) -> np.ndarray:
+    """Open cells reachable from the cells (rows, cols) through 4-neighbours whose floor
+    heights differ by at most `step` (breadth first)."""
+    ny, nx = height.shape
+    reached = np.zeros((ny, nx), bool)
+    queue = [(r, c) for r, c in zip(rows, cols, strict=True) if open_[r, c]]
+    for r, c in queue:
+        reached[r, c] = True
+    while queue:
+        r, c = queue.pop()
+        for rr, cc in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
+            if (0 <= rr < ny and 0 <= cc < nx and open_[rr, cc] and not reached[rr, cc]
+                    and abs(height[rr, cc] - height[r, c]) <= step):
+                reached[rr, cc] = True
+                queue.append((rr, cc))
+    return reached
 
 
 def _disc_overlaps(cylinder: Cylinder, x: np.ndarray, y: np.ndarray, half: float) -> np.ndarray:

@@ -10,7 +10,24 @@ added keys; an unknown key is an error):
 * `motion`: `{"speed": m/s, "yaw_rate": rad/s}`, the robot keeps driving at this body
   twist while the head turns (default: stands still during a scan).
 * `odometry`: wheel-odometry noise, see `SimOdometryNoise`.
-* on an object: `name` (free text).
+* on an object: `name` (free text), `surface` and `reflectance` (as on a floor region).
+* `floor_regions`: patches of floor at other heights, each a convex `polygon`
+  ([[x, y], ...] in `map`, counter-clockwise) or a rectangle (`center` [x, y], `size`
+  [sx, sy], `yaw`), with `height` (m: the surface's height at the region's centroid;
+  below 0 a hole, stairwell or step down, above 0 a platform), an optional `gradient`
+  ([dz/dx, dz/dy]: a ramp, the inclined plane height + gradient . (xy - centroid)),
+  `color`, `surface`, `reflectance` and `name`. The surface must lie wholly at or above
+  0, or wholly at or below 0 (vertical faces join it to the floor z = 0); regions must
+  not overlap one another.
+* `surface` (the material): "matte" (default), "glass" (transparent: the laser and the camera pass
+  through, nothing returns) or "mirror" (opaque, but the laser returns no stripe);
+  `reflectance` (0..1, default 1) scales the laser light a matte surface returns, and 0
+  returns none (black carpet).
+* `people`: vertical cylinders that move: `radius`, `height`, `color`, `name` and a
+  `track` [[scan, x, y], ...] (scan indices increasing): the person stands at the
+  track's position for each scan, linearly interpolated between its points and held
+  beyond its ends (`Scene.at_scan`). People are no part of the static scene (nor of its
+  truth raster); `at_scan(i)` places them as cylinders.
 
 Built-in scenes live as JSON files beside this module (`scenes/<name>.json`).
 """
@@ -19,7 +36,8 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +50,7 @@ from ..validate import check_keys, number, vector
 FORMAT = "scanmap.scene/1"
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 DEFAULT_TEXTURE = 0.25
+MATERIALS = ("matte", "glass", "mirror")
 
 
 @dataclass(frozen=True)
@@ -43,6 +62,8 @@ class Box:
     color: tuple[int, int, int]
     yaw: float = 0.0
     name: str = ""
+    material: str = "matte"
+    reflectance: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -54,6 +75,59 @@ class Cylinder:
     height: float
     color: tuple[int, int, int]
     name: str = ""
+    material: str = "matte"
+    reflectance: float = 1.0
+
+
+@dataclass(frozen=True)
+class FloorRegion:
+    """Floor at another height over a convex polygon (see the module docstring)."""
+
+    polygon: tuple[tuple[float, float], ...]
+    height: float
+    gradient: tuple[float, float] = (0.0, 0.0)
+    color: tuple[int, int, int] = (128, 128, 128)
+    material: str = "matte"
+    reflectance: float = 1.0
+    name: str = ""
+
+    @property
+    def corners(self) -> np.ndarray:
+        """(K, 2) polygon corners, counter-clockwise."""
+        return np.array(self.polygon, dtype=np.float64)
+
+    def height_at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Height of the region's surface plane at (x, y)."""
+        cx, cy = self.corners.mean(axis=0)
+        return self.height + self.gradient[0] * (np.asarray(x) - cx) \
+            + self.gradient[1] * (np.asarray(y) - cy)
+
+    def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Whether the points (x, y) lie inside the polygon (edges included)."""
+        c = self.corners
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        inside = np.ones(np.broadcast(x, y).shape, dtype=bool)
+        for (ax, ay), (bx, by) in zip(c, np.roll(c, -1, axis=0), strict=True):
+            inside &= (bx - ax) * (y - ay) - (by - ay) * (x - ax) >= -1e-12
+        return inside
+
+
+@dataclass(frozen=True)
+class Person:
+    """A moving vertical cylinder: at scan s it stands at `track` interpolated at s."""
+
+    radius: float
+    height: float
+    color: tuple[int, int, int]
+    track: np.ndarray  # (T, 3): scan index, x, y; scan indices increasing
+    name: str = ""
+
+    def at_scan(self, index: float) -> Cylinder:
+        """The person as a cylinder standing where it is at scan `index`."""
+        t = self.track
+        x, y = np.interp(index, t[:, 0], t[:, 1]), np.interp(index, t[:, 0], t[:, 2])
+        return Cylinder((float(x), float(y), 0.5 * self.height), self.radius, self.height,
+                        self.color, self.name)
 
 
 @dataclass(frozen=True)
@@ -95,18 +169,38 @@ class Scene:
     motion: Motion = field(default_factory=Motion)
     odometry: SimOdometryNoise = field(default_factory=SimOdometryNoise)
     description: str = ""
+    floor_regions: tuple[FloorRegion, ...] = ()
+    people: tuple[Person, ...] = ()
 
     def with_ambient(self, ambient: float) -> Scene:
         """The same scene under another light level (0 dark .. 1 bright)."""
-        return Scene(self.name, self.floor_color, float(ambient), self.objects,
-                     self.scan_poses, self.texture, self.motion, self.odometry,
-                     self.description)
+        return replace(self, ambient=float(ambient))
+
+    def at_scan(self, index: float) -> Scene:
+        """The scene as scan `index` sees it: its people placed as cylinders (static)."""
+        if not self.people:
+            return self
+        return replace(self, objects=self.objects + tuple(p.at_scan(index) for p in self.people),
+                       people=())
+
+    def floor_at(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """True floor height and slope (rad) at the points (x, y) in `map`."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        height = np.zeros(np.broadcast(x, y).shape)
+        slope = np.zeros_like(height)
+        for region in self.floor_regions:
+            inside = region.contains(x, y)
+            height = np.where(inside, region.height_at(x, y), height)
+            slope = np.where(inside, math.atan(math.hypot(*region.gradient)), slope)
+        return height, slope
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min_xy, max_xy) of the objects and scan poses in `map` (m)."""
         corners = [self.scan_poses[:, :2]]
         for obj in self.objects:
             corners.append(footprint_corners(obj))
+        corners.extend(region.corners for region in self.floor_regions)
+        corners.extend(p.track[:, 1:] + sign * p.radius for p in self.people for sign in (-1, 1))
         stacked = np.vstack(corners)
         return stacked.min(axis=0), stacked.max(axis=0)
 
@@ -123,6 +217,7 @@ class Scene:
                         "height": obj.height, "color": list(obj.color)}
             if obj.name:
                 item["name"] = obj.name
+            item |= _material_dict(obj)
             objects.append(item)
         data = {"format": FORMAT, "name": self.name, "description": self.description,
                 "floor": {"color": list(self.floor_color)}, "ambient": self.ambient,
@@ -131,6 +226,15 @@ class Scene:
                 "odometry": {k: getattr(self.odometry, k)
                              for k in SimOdometryNoise.__dataclass_fields__},
                 "objects": objects, "scan_poses": self.scan_poses.tolist()}
+        if self.floor_regions:
+            data["floor_regions"] = [
+                {"polygon": [list(c) for c in r.polygon], "height": r.height,
+                 "gradient": list(r.gradient), "color": list(r.color), "name": r.name}
+                | _material_dict(r) for r in self.floor_regions]
+        if self.people:
+            data["people"] = [{"radius": p.radius, "height": p.height, "color": list(p.color),
+                               "track": p.track.tolist(), "name": p.name}
+                              for p in self.people]
         return data
 
     def save(self, path: str | os.PathLike[str]) -> None:
@@ -147,7 +251,8 @@ class Scene:
 
         top = check_keys(data, where("(top level)"), err,
                          ["format", "floor", "ambient", "objects", "scan_poses"],
-                         ["name", "description", "texture", "motion", "odometry"])
+                         ["name", "description", "texture", "motion", "odometry",
+                          "floor_regions", "people"])
         if top["format"] != FORMAT:
             raise err(f"{where('format')}: expected {FORMAT!r}, got {top['format']!r}")
         floor = check_keys(top["floor"], where("floor"), err, ["color"])
@@ -172,6 +277,10 @@ class Scene:
         for key in ("name", "description"):
             if not isinstance(top.get(key, ""), str):
                 raise err(f"{where(key)}: expected a string")
+        regions = tuple(_floor_region(item, where(f"floor_regions[{i}]"))
+                        for i, item in enumerate(_list(top, "floor_regions", where)))
+        people = tuple(_person(item, where(f"people[{i}]"))
+                       for i, item in enumerate(_list(top, "people", where)))
         return cls(
             name=top.get("name", Path(source).stem),
             floor_color=_color(floor["color"], where("floor.color")),
@@ -185,6 +294,8 @@ class Scene:
                 yaw_rate=number(motion.get("yaw_rate", 0.0), where("motion.yaw_rate"), err)),
             odometry=odometry,
             description=top.get("description", ""),
+            floor_regions=regions,
+            people=people,
         )
 
 
@@ -210,30 +321,123 @@ def _color(value: Any, where: str) -> tuple[int, int, int]:
     return (value[0], value[1], value[2])
 
 
+def _list(top: Any, key: str, where: Callable[[str], str]) -> list:
+    """The optional list `top[key]` (empty when absent)."""
+    value = top.get(key, [])
+    if not isinstance(value, list):
+        raise SceneError(f"{where(key)}: expected a list")
+    return value
+
+
+def _material_dict(obj: Box | Cylinder | FloorRegion) -> dict[str, Any]:
+    """The material keys of an object or region that differ from the defaults."""
+    out: dict[str, Any] = {}
+    if obj.material != "matte":
+        out["surface"] = obj.material
+    if obj.reflectance != 1.0:
+        out["reflectance"] = obj.reflectance
+    return out
+
+
+def _material(item: dict, where: str) -> tuple[str, float]:
+    """Validated `surface` (material) and `reflectance` of an object or region."""
+    material = item.get("surface", "matte")
+    if material not in MATERIALS:
+        raise SceneError(f"{where}.surface: expected one of {', '.join(MATERIALS)}, "
+                         f"got {material!r}")
+    return material, number(item.get("reflectance", 1.0), f"{where}.reflectance", SceneError,
+                            low=0.0, high=1.0)
+
+
+def _name(item: dict, where: str) -> str:
+    name = item.get("name", "")
+    if not isinstance(name, str):
+        raise SceneError(f"{where}.name: expected a string")
+    return name
+
+
+def _floor_region(item: Any, where: str) -> FloorRegion:
+    """One validated floor region: a convex polygon or a rectangle."""
+    err = SceneError
+    common = ["height", "gradient", "color", "surface", "reflectance", "name"]
+    if isinstance(item, dict) and "polygon" in item:
+        check_keys(item, where, err, ["polygon", "height"], common)
+        points = item["polygon"]
+        if not isinstance(points, list) or len(points) < 3:
+            raise err(f"{where}.polygon: expected at least 3 [x, y] corners")
+        corners = np.array([vector(p, 2, f"{where}.polygon[{i}]", err)
+                            for i, p in enumerate(points)])
+    else:
+        check_keys(item, where, err, ["center", "size", "height"], ["yaw", *common])
+        center = vector(item["center"], 2, f"{where}.center", err)
+        size = vector(item["size"], 2, f"{where}.size", err)
+        if (size <= 0.0).any():
+            raise err(f"{where}.size: expected two numbers > 0, got {item['size']!r}")
+        yaw = number(item.get("yaw", 0.0), f"{where}.yaw", err)
+        c, s = math.cos(yaw), math.sin(yaw)
+        local = 0.5 * size * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+        corners = local @ np.array([[c, s], [-s, c]]) + center
+    edges = np.roll(corners, -1, axis=0) - corners
+    turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] \
+        - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+    if not (turns > 0.0).all():
+        raise err(f"{where}.polygon: expected a convex polygon, counter-clockwise")
+    material, reflectance = _material(item, where)
+    region = FloorRegion(
+        polygon=tuple((float(x), float(y)) for x, y in corners),
+        height=number(item["height"], f"{where}.height", err),
+        gradient=tuple(vector(item.get("gradient", [0.0, 0.0]), 2, f"{where}.gradient", err)),
+        color=_color(item.get("color", [128, 128, 128]), f"{where}.color"),
+        material=material, reflectance=reflectance, name=_name(item, where))
+    z = region.height_at(corners[:, 0], corners[:, 1])
+    if z.min() < -1e-9 and z.max() > 1e-9:
+        raise err(f"{where}.gradient: the surface crosses the floor z = 0 (heights "
+                  f"{z.min():.3f}..{z.max():.3f} m at the corners)")
+    return region
+
+
+def _person(item: Any, where: str) -> Person:
+    """One validated person: a cylinder with a track."""
+    err = SceneError
+    check_keys(item, where, err, ["radius", "height", "color", "track"], ["name"])
+    track = item["track"]
+    if not isinstance(track, list) or not track:
+        raise err(f"{where}.track: expected a non-empty list of [scan, x, y]")
+    points = np.array([vector(p, 3, f"{where}.track[{i}]", err) for i, p in enumerate(track)])
+    if (np.diff(points[:, 0]) <= 0.0).any():
+        raise err(f"{where}.track: scan indices must increase")
+    return Person(radius=number(item["radius"], f"{where}.radius", err, low=0.0, low_open=True),
+                  height=number(item["height"], f"{where}.height", err, low=0.0, low_open=True),
+                  color=_color(item["color"], f"{where}.color"), track=points,
+                  name=_name(item, where))
+
+
 def _object(item: Any, where: str) -> Box | Cylinder:
     """One validated box or cylinder."""
     err = SceneError
     if not isinstance(item, dict) or item.get("type") not in ("box", "cylinder"):
         raise err(f"{where}.type: expected 'box' or 'cylinder'")
-    name = item.get("name", "")
-    if not isinstance(name, str):
-        raise err(f"{where}.name: expected a string")
+    name = _name(item, where)
+    material, reflectance = _material(item, where)
+    extra = ["name", "surface", "reflectance"]
     if item["type"] == "box":
-        check_keys(item, where, err, ["type", "center", "size", "color"], ["yaw", "name"])
+        check_keys(item, where, err, ["type", "center", "size", "color"], ["yaw", *extra])
         size = vector(item["size"], 3, f"{where}.size", err)
         for axis, s in enumerate(size):
             if s <= 0.0:
                 raise err(f"{where}.size[{axis}]: expected > 0, got {s}")
         return Box(center=tuple(vector(item["center"], 3, f"{where}.center", err)),
                    size=tuple(size), color=_color(item["color"], f"{where}.color"),
-                   yaw=number(item.get("yaw", 0.0), f"{where}.yaw", err), name=name)
-    check_keys(item, where, err, ["type", "center", "radius", "height", "color"], ["name"])
+                   yaw=number(item.get("yaw", 0.0), f"{where}.yaw", err), name=name,
+                   material=material, reflectance=reflectance)
+    check_keys(item, where, err, ["type", "center", "radius", "height", "color"], extra)
     return Cylinder(center=tuple(vector(item["center"], 3, f"{where}.center", err)),
                     radius=number(item["radius"], f"{where}.radius", err, low=0.0,
                                   low_open=True),
                     height=number(item["height"], f"{where}.height", err, low=0.0,
                                   low_open=True),
-                    color=_color(item["color"], f"{where}.color"), name=name)
+                    color=_color(item["color"], f"{where}.color"), name=name,
+                    material=material, reflectance=reflectance)
 
 
 def load_scene(path: str | os.PathLike[str]) -> Scene:
