@@ -343,8 +343,10 @@ class LoopCloser:
                 Edge(candidate, node, result.pose, information, loop=True))
 
     def _optimise(self) -> None:
+        """Optimise the nodes processed so far (not those the caller added since: the
+        result must not depend on how far ahead the caller is) and publish the result."""
         with self._lock:
-            n = len(self.graph)
+            n = len(self._clouds)
             snapshot = PoseGraph()
             snapshot.poses = self.graph.poses[:n]
             snapshot.edges = [e for e in self.graph.edges if max(e.source, e.target) < n]
