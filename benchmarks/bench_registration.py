@@ -1,8 +1,9 @@
 """Registration against its peers, side by side on the same scans and the same odometry.
 
 Sequences: the simulator's corridor and office (ideal scans; in the full run also scans
-processed from rendered frames), and the real Intel and ACES CARMEN logs (raw ODOM as
-the prior, the corrected FLASER poses as reference).
+processed from rendered frames), and the seven real CARMEN logs (`LOGS`: raw ODOM as the
+prior, the corrected FLASER poses as reference; the quick run takes the first
+`QUICK_SCANS` scans of each). Ours has one configuration for every log.
 
 Methods, all single-threaded, all started from the same first pose:
 * ours: `ScanOdometry` (scan-to-local-map point-to-plane ICP, planar, odometry prior).
@@ -14,6 +15,8 @@ Methods, all single-threaded, all started from the same first pose:
 * KISS-ICP: its own scan-to-map pipeline, configured for a 4 m sensor (voxel = max range
   / 100 as it recommends, initial threshold 0.3 m, no deskew for stop-and-scan), with the
   odometry increment fed as its motion prediction (`last_delta`).
+Every peer runs in a process of its own with a time limit (`run_isolated`): a crash or
+a hang is that peer's failure on that sequence, reported in its place.
 For the 2-D logs the peers get each scan extruded into a 1 m wall (copies at four
 heights) so that their normals and covariances exist; ours uses the 2-D points.
 
@@ -34,9 +37,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before Open3D loads: single-thr
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
+from benchmarks.isolation import PeerFailed, run_isolated
 from benchmarks.timing import first_call_time
 from scanmap.datasets.carmen import read_carmen
 from scanmap.evaluation.trajectory_errors import ate_rmse, relative_errors, shared_error
@@ -53,6 +58,9 @@ from scanmap_driver.transforms import invert_pose, se2_to_pose
 
 REAL = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "real", "carmen")
 EXTRUDE_HEIGHTS = (0.0, 0.1, 0.2, 0.3, 0.4)
+LOGS = ("intel", "aces", "acapulco", "belgioioso", "edmonton", "fhw", "freiburg-101")
+QUICK_SCANS = 100  # scans per real log in the quick run
+PEER_TIMEOUT = 600.0  # s a peer may take on one sequence
 
 
 @dataclass
@@ -269,8 +277,8 @@ def run_kiss(seq: Sequence) -> tuple[np.ndarray, list[float]]:
 
 
 METHODS: dict[str, Callable[[Sequence], tuple[np.ndarray, list[float]]]] = {
-    "Open3D point-to-plane ICP": lambda s: run_open3d(s, "plane"),
-    "Open3D GICP": lambda s: run_open3d(s, "gicp"),
+    "Open3D point-to-plane ICP": partial(run_open3d, method="plane"),
+    "Open3D GICP": partial(run_open3d, method="gicp"),
     "small_gicp GICP": run_small_gicp,
     "KISS-ICP": run_kiss,
 }
@@ -290,9 +298,9 @@ def compare(seq: Sequence) -> list[dict]:
     peers = {}
     for name, method in METHODS.items():
         try:
-            runs[name] = method(seq)
-        except Exception as exc:  # a peer that fails is reported, not fatal
-            peers[name] = {"failed": f"{type(exc).__name__}: {exc}"}
+            runs[name] = run_isolated(method, seq, timeout=PEER_TIMEOUT)
+        except PeerFailed as exc:  # a peer that fails is reported, not fatal
+            peers[name] = {"failed": str(exc)}
     runs["odometry alone"] = (seq.odometry_poses(), [0.0])
     ours = _scores(*runs["ours"], seq)
     peers |= {name: _scores(*run, seq) for name, run in runs.items() if name != "ours"}
@@ -303,6 +311,7 @@ def compare(seq: Sequence) -> list[dict]:
             values["error"] = values[key]
     points = int(np.median([len(s) for s in seq.scans]))
     row = {"stage": "registration", "method": "ours: ScanOdometry (planar, scan-to-map)",
+           "sequence": seq.name,
            "settings": f"{seq.name}, {len(seq.scans)} scans, {points} points/scan",
            "median_s": ours["median_s"], "error": ours[key],
            "error_unit": "m, mean error of 1 m relative motions" if real
@@ -321,20 +330,29 @@ def reference_noise(seq: Sequence) -> dict:
     of them share (`shared_error`) is the reference's, if their own errors are
     independent. Three estimates, in pairs: two matchers each started at the reference
     pose of every scan, against the previous scans placed at their reference poses (ours;
-    small_gicp against the last 10 scans), and the wheel odometry, a sensor the matchers'
-    errors cannot share. The row's figure is the two matchers' share.
+    small_gicp against the last 10 scans, in a process of its own), and the wheel
+    odometry, a sensor the matchers' errors cannot share. The row's figure is the two
+    matchers' share; if small_gicp fails, what ours and the odometry share.
     """
-    errors = {name: relative_errors(poses, seq.reference, 1.0) for name, poses in
-              (("ours", reference_floor(seq)), ("small_gicp", small_gicp_floor(seq)),
-               ("odometry", seq.odometry_poses()))}
-    peers = {f"{name} from the reference poses": {"error": errors[name].mean_translation}
-             for name in ("ours", "small_gicp")}
+    estimates = {"ours": reference_floor(seq), "odometry": seq.odometry_poses()}
+    peers = {}
+    try:
+        estimates["small_gicp"] = run_isolated(small_gicp_floor, seq, timeout=PEER_TIMEOUT)
+    except PeerFailed as exc:
+        peers["small_gicp from the reference poses"] = {"failed": str(exc)}
+    errors = {name: relative_errors(poses, seq.reference, 1.0)
+              for name, poses in estimates.items()}
+    matchers = [name for name in ("ours", "small_gicp") if name in errors]
+    peers |= {f"{name} from the reference poses": {"error": errors[name].mean_translation}
+              for name in matchers}
     peers |= {f"shared by {name} and odometry": {"error": shared_error(errors[name],
                                                                         errors["odometry"])}
-              for name in ("ours", "small_gicp")}
+              for name in matchers}
+    pair = ("ours", "small_gicp" if "small_gicp" in errors else "odometry")
     return {"stage": "registration", "method": "reference noise: error of a perfect estimate",
-            "settings": f"{seq.name}: what ours and small_gicp from the reference poses share",
-            "median_s": None, "error": shared_error(errors["ours"], errors["small_gicp"]),
+            "sequence": seq.name, "settings": f"{seq.name}: what {pair[0]} and {pair[1]} "
+            "from the reference poses share", "median_s": None,
+            "error": shared_error(errors[pair[0]], errors[pair[1]]),
             "error_unit": "m, mean error of 1 m relative motions", "peers": peers}
 
 
@@ -385,6 +403,7 @@ def scan_agreement(trajectories: dict[str, np.ndarray], seq: Sequence, lag: int 
 
     figures = {name: residual(poses) for name, poses in trajectories.items()}
     return {"stage": "registration", "method": "scan agreement (no reference needed)",
+            "sequence": seq.name,
             "settings": f"{seq.name}: scan k on scan k-{lag}, median point-to-line distance",
             "median_s": None, "error": figures.pop("ours"),
             "error_unit": "m, median point-to-line distance",
@@ -415,20 +434,43 @@ def timing_20k(seq: Sequence, quick: bool) -> dict:
             "peers": {}}
 
 
+def log_table(rows: list[dict]) -> str:
+    """One line per real log: 1 m relative error (mm) of ours, each peer, the odometry
+    alone and the reference-noise floor, and the median time per scan (ms)."""
+    ours = {r["sequence"]: r for r in rows if r.get("sequence", "").startswith("real")
+            and r["method"].startswith("ours")}
+    floors = {r["sequence"]: r["error"] for r in rows if r.get("sequence") in ours
+              and r["method"].startswith("reference noise")}
+    lines = ["| log | ours mm (ms/scan) | " + " | ".join(f"{n} mm (ms/scan)" for n in METHODS)
+             + " | odometry alone mm | reference noise mm |",
+             "|---" * (len(METHODS) + 4) + "|"]
+    for sequence, row in ours.items():
+        cells = [f"{1e3 * row['error']:.1f} ({1e3 * row['median_s']:.1f})"]
+        for name in METHODS:
+            peer = row["peers"][name]
+            cells.append(f"failed: {peer['failed']}" if "failed" in peer
+                         else f"{1e3 * peer['error']:.1f} ({1e3 * peer['median_s']:.1f})")
+        cells.append(f"{1e3 * row['peers']['odometry alone']['error']:.1f}")
+        floor = floors.get(sequence)
+        cells.append("-" if floor is None else f"{1e3 * floor:.1f}")
+        lines.append(f"| {sequence} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def run(quick: bool = False, only: str | None = None) -> list[dict]:
     """Rows for every sequence (fewer and shorter ones with `quick`).
 
     only: keep just the sequences whose key contains it ("intel", "real", "corridor";
-    keys: sim-corridor, sim-office, real-intel, real-aces, rendered-office,
+    keys: sim-corridor, sim-office, real-<log> for each of `LOGS`, rendered-office,
     rendered-corridor); the 20,000-point timing row comes with "timing" or no filter.
     """
-    builders = {"sim-corridor": lambda: simulated("corridor", 20 if quick else None),
-                "sim-office": lambda: simulated("office", 10 if quick else None),
-                "real-intel": lambda: carmen("intel", 200 if quick else None)}
+    builders = {"sim-corridor": partial(simulated, "corridor", 20 if quick else None),
+                "sim-office": partial(simulated, "office", 10 if quick else None)}
+    builders |= {f"real-{name}": partial(carmen, name, QUICK_SCANS if quick else None)
+                 for name in LOGS}
     if not quick:
-        builders |= {"real-aces": lambda: carmen("aces", None),
-                     "rendered-office": lambda: rendered("office", 6),
-                     "rendered-corridor": lambda: rendered("corridor", 8)}
+        builders |= {"rendered-office": partial(rendered, "office", 6),
+                     "rendered-corridor": partial(rendered, "corridor", 8)}
     rows = []
     if only is None or only in "timing":
         rows.append(timing_20k(builders["sim-corridor"](), quick))
@@ -448,4 +490,7 @@ if __name__ == "__main__":
     parser.add_argument("--only", help="only sequences whose key contains this (e.g. real, "
                         "intel, aces, sim, rendered, timing)")
     args = parser.parse_args()
-    print(markdown_table(run(quick=args.quick, only=args.only)))
+    rows = run(quick=args.quick, only=args.only)
+    print(markdown_table(rows))
+    print()
+    print(log_table(rows))
