@@ -342,6 +342,42 @@ def half_max_width(g: np.ndarray, n: int, i0: int) -> float:
     return hi - lo
 
 
+CLIP_REACH = 32  # px either side of a clipped peak searched for its flanks
+
+
+@njit(cache=True, nogil=True, inline="always")
+def clipped_centre(vals: np.ndarray, n: int, i0: int, sat: float) -> float:
+    """Offset from i0 of the centre of the clipped (flat-topped) peak of vals[:n] at i0:
+    the midpoint of the interpolated positions where the profile first falls below the
+    level halfway between the clip level `sat` and the peak's foot (the higher of the two
+    flanks' feet, where the descent from the clipped top stops). The flat top carries no
+    position; a symmetric stripe's flanks cross any level symmetrically about its centre,
+    however wide the clipped core. NaN when a flank does not descend within the profile."""
+    if i0 < 1 or i0 >= n - 1:
+        return np.nan
+    i = i0
+    while i > 0 and (vals[i - 1] >= sat or vals[i - 1] <= vals[i]):
+        i -= 1
+    j = i0
+    while j < n - 1 and (vals[j + 1] >= sat or vals[j + 1] <= vals[j]):
+        j += 1
+    left, right = vals[i], vals[j]
+    level = 0.5 * (sat + max(left, right))
+    if not level < sat:
+        return np.nan
+    i = i0
+    while i > 0 and vals[i - 1] >= level:
+        i -= 1
+    j = i0
+    while j < n - 1 and vals[j + 1] >= level:
+        j += 1
+    if i == 0 or j == n - 1:
+        return np.nan
+    lo = i - (vals[i] - level) / (vals[i] - vals[i - 1])
+    hi = j + (vals[j] - level) / (vals[j] - vals[j + 1])
+    return 0.5 * (lo + hi) - i0
+
+
 @njit(cache=True, nogil=True)
 def _gaussian_sums(g: np.ndarray, n: int, clipped: np.ndarray, amp: float, mu: float,
                    sig: float, normal: np.ndarray) -> float:
@@ -573,6 +609,7 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
     """
     reach = max(offset + side, half) + m
     vals = np.empty(2 * reach + 1)
+    wide = np.empty(2 * CLIP_REACH + 1)
     smooth = np.empty(2 * reach + 1)
     g = np.empty(2 * half + 1)
     g_raw = np.empty(2 * half + 1)
@@ -588,6 +625,7 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
         first = max(0, best_pos[line] - reach)
         n_buf = min(n_pos, best_pos[line] + reach + 1) - first
         base = line * line_stride
+        fit_channel = channel
         _gather(flat, e, pad, line, base, pos_stride, channel, first, n_buf, vals)
         k0 = _integer_peak(vals, n_buf, best_pos[line] - first, m, sat)
         centre = 3 * (base + (first + k0) * pos_stride)
@@ -601,6 +639,7 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
                 if channel == 0 and max(flat[centre], flat[centre + 1]) >= sat:
                     # a clipped white core: the red is flat over a wider band whose edges
                     # lie on the scene's red; green and blue (luma) draw the core
+                    fit_channel = 1
                     _gather(flat, e, pad, line, base, pos_stride, 1, first, n_buf, vals)
                     k0 = _integer_peak(vals, n_buf, k0, m, sat)
         bg_raw = _background(vals, n_buf, k0, offset, side)
@@ -615,6 +654,13 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
             n_clipped += clipped[k]
         if n_clipped >= 2:  # the flat top's half-height edges: smoothing adds nothing
             d = peak_offset(g_raw, n_win, k0 - w0, clipped, estimator, half, work)
+            if not math.isfinite(d) and vals[k0] >= sat:  # a core wider than the window
+                x0 = first + k0
+                w_first = max(0, x0 - CLIP_REACH)
+                n_wide = min(n_pos, x0 + CLIP_REACH + 1) - w_first
+                _gather(flat, e, pad, line, base, pos_stride, fit_channel, w_first, n_wide,
+                        wide)
+                d = clipped_centre(wide, n_wide, x0 - w_first, sat)
         else:
             smooth_profile(vals, n_buf, smooth)
             bg = _background(smooth, n_buf, k0, offset, side)
