@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -22,6 +24,7 @@ import numpy as np
 from .errors import ScanmapError
 
 _MAX_INT_DIGITS = 300  # float64 reaches 1.8e308
+_MAX_DEFLATE = 1032  # deflate's largest expansion ratio
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
@@ -106,12 +109,35 @@ def load_npz(path: str | os.PathLike[str], error: type[ScanmapError],
     """Load every array of an .npz without pickle; `error` names the file and missing keys."""
     try:
         with np.load(path, allow_pickle=False) as npz:
+            if not isinstance(npz, np.lib.npyio.NpzFile):
+                raise ValueError("a single array, not an archive of named arrays")
+            _check_sizes(npz)
             arrays = {key: npz[key] for key in npz.files}
     except FileNotFoundError:
         raise error(f"{path}: file not found") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error,
+            NotImplementedError, MemoryError) as exc:
         raise error(f"{path}: not a readable .npz file ({exc})") from None
     missing = [key for key in required if key not in arrays]
     if missing:
         raise error(f"{path}: missing arrays {missing}")
     return arrays
+
+
+def _check_sizes(npz: np.lib.npyio.NpzFile) -> None:
+    """ValueError when an array's header claims more bytes than its member holds, or a
+    member more than deflate can expand its compressed bytes to: nothing is allocated for
+    a size the file does not back."""
+    for info in npz.zip.infolist():
+        with npz.zip.open(info) as member:
+            version = np.lib.format.read_magic(member)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(member)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(member)
+            else:
+                raise ValueError(f"{info.filename}: unsupported .npy version {version}")
+        claimed = math.prod(shape) * dtype.itemsize
+        if claimed > info.file_size or info.file_size > _MAX_DEFLATE * info.compress_size + 4096:
+            raise ValueError(f"{info.filename}: its header claims {claimed} bytes, the member "
+                             f"holds {info.file_size} ({info.compress_size} compressed)")

@@ -92,16 +92,31 @@ class Scan:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Scan:
-        """Read a scan `.npz`; a malformed file raises ScanError naming it."""
+        """Read a scan `.npz`; a malformed file raises ScanError naming it and the field.
+
+        Values must arrive as stored: no wrapped integers (a colour of -1 is refused, not
+        read as 255), no NaN or inf, no float that overflows float32."""
         arrays = load_npz(path, ScanError, required=("format_version", *_PER_POINT))
-        version = int(arrays["format_version"])
+        version = _scalar(arrays, "format_version", path, FORMAT_VERSION)
         if version != FORMAT_VERSION:
             raise ScanError(f"{path}: format_version {version} is not {FORMAT_VERSION}")
+        fields = {name: _stored(arrays[name], f"{path}: {name}", dtype)
+                  for name, (dtype, _) in _PER_POINT.items()}
+        if (fields["frame_index"] < 0).any() or (fields["range_sigma"] < 0).any():
+            raise ScanError(f"{path}: frame_index and range_sigma: expected values >= 0")
+        poses = {}
+        for name in ("odom_start", "odom_end"):
+            pose = _stored(arrays.get(name, _NO_POSE), f"{path}: {name}", np.float64,
+                           allow_nan=True)
+            if pose.shape != (4, 4) or not (np.isfinite(pose).all() or np.isnan(pose).all()):
+                raise ScanError(f"{path}: {name}: expected a finite 4x4 pose or all NaN")
+            poses[name] = pose
+        index = _scalar(arrays, "index", path, 0)
+        stamp = _scalar(arrays, "stamp", path, 0.0)
+        if index < 0 or index != int(index):
+            raise ScanError(f"{path}: index: expected an integer >= 0, got {index}")
         try:
-            return cls(**{name: arrays[name] for name in _PER_POINT},
-                       index=int(arrays.get("index", 0)), stamp=float(arrays.get("stamp", 0.0)),
-                       odom_start=arrays.get("odom_start", _NO_POSE),
-                       odom_end=arrays.get("odom_end", _NO_POSE))
+            return cls(**fields, index=int(index), stamp=stamp, **poses)
         except ScanError as exc:
             raise ScanError(f"{path}: {exc}") from None
 
@@ -117,3 +132,28 @@ class Scan:
             if not o3d.io.write_point_cloud(str(tmp_ply), cloud, write_ascii=False):
                 raise ScanError(f"{path}: Open3D could not write the PLY file")
             os.replace(tmp_ply, tmp)
+
+
+def _stored(raw: np.ndarray, where: str, dtype: type, allow_nan: bool = False) -> np.ndarray:
+    """`raw` as `dtype` when every value survives the conversion unchanged (finite floats,
+    unless NaN is allowed); else ScanError naming `where`."""
+    target = np.dtype(dtype)
+    if raw.dtype.kind not in ("iu" if target.kind in "iu" else "iuf"):
+        raise ScanError(f"{where}: expected {target.name} values, got {raw.dtype}")
+    with np.errstate(all="ignore"):
+        value = raw.astype(target)
+    if target.kind in "iu":
+        if not np.array_equal(value, raw):
+            raise ScanError(f"{where}: values outside the range of {target.name}")
+    elif not np.isfinite(np.where(np.isnan(raw), 0.0, value) if allow_nan else value).all():
+        raise ScanError(f"{where}: expected finite values (no NaN, inf or float overflow)")
+    return value
+
+
+def _scalar(arrays: dict[str, np.ndarray], name: str, path: str | os.PathLike[str],
+            default: float) -> float:
+    """A finite number stored as a 0-d array (`default` when absent)."""
+    value = _stored(np.asarray(arrays.get(name, default)), f"{path}: {name}", np.float64)
+    if value.shape != ():
+        raise ScanError(f"{path}: {name}: expected a single number, got shape {value.shape}")
+    return float(value)

@@ -47,6 +47,7 @@ from .transforms import make_pose, rot_x, rot_y, rot_z
 from .validate import check_keys, integer, number, vector
 
 FORMAT = "scanmap.scanner/1"
+MAX_IMAGE_SIDE = 16384  # pixels: larger is damage, and would allocate gigabytes per frame
 
 # Columns: the optical x, y, z axes of a level, side-mounted camera, expressed in `head`.
 # x (image u) points down, y (image v) points left, z (optical axis) points forward.
@@ -239,9 +240,14 @@ class ScannerModel:
         c = check_keys(top["camera"], where("camera"), err,
                        ["width", "height", "fx", "fy", "cx", "cy"], ["distortion", "frame_rate"])
         dist = vector(c.get("distortion", [0.0] * 5), 5, where("camera.distortion"), err)
+        for side in ("width", "height"):
+            if integer(c[side], where(f"camera.{side}"), err, low=1) > MAX_IMAGE_SIDE:
+                raise err(f"{where(f'camera.{side}')}: expected at most {MAX_IMAGE_SIDE} "
+                          f"pixels, got {c[side]}")
+        if not isinstance(top.get("name", ""), str):
+            raise err(f"{where('name')}: expected a string, got {top['name']!r}")
         camera = CameraIntrinsics(
-            width=integer(c["width"], where("camera.width"), err, low=1),
-            height=integer(c["height"], where("camera.height"), err, low=1),
+            width=c["width"], height=c["height"],
             fx=number(c["fx"], where("camera.fx"), err, low=0.0, low_open=True),
             fy=number(c["fy"], where("camera.fy"), err, low=0.0, low_open=True),
             cx=number(c["cx"], where("camera.cx"), err),
@@ -302,7 +308,7 @@ class ScannerModel:
                                            low=0.0, high=math.pi / 2),
                 pixel_sigma=number(top.get("pixel_sigma", 0.1), where("pixel_sigma"), err,
                                    low=0.0, low_open=True),
-                name=str(top.get("name", "scanner")),
+                name=top.get("name", "scanner"),
             )
         except CalibrationError as exc:
             if str(exc).startswith(source):
