@@ -47,6 +47,12 @@ class RegistrationConfig:
     search_radius, search_angle: half-width of that search (m, rad).
     max_correction, max_rotation: a result moved farther than this from the guess
       (m, rad) is called diverged.
+    consistency_level: the self-check against the prior. A correction (guess to result)
+      whose Mahalanobis distance under the prior's covariance lies beyond this quantile
+      of the chi-square distribution disagrees with odometry; the scan then keeps the
+      prior (status INCONSISTENT) unless the map clearly fits the matched pose better
+      than the prior's (the coarse search's likelihood score, by the margin that search
+      needs to move a start). 1 turns the check off.
     restart_after: after this many failed scans in a row the map is stale (the robot was
       carried away, or the scene changed): it restarts from the next scan at its guess.
     """
@@ -78,6 +84,7 @@ class RegistrationConfig:
     search_angle: float = 0.5
     max_correction: float = 1.0
     max_rotation: float = 0.8
+    consistency_level: float = 0.999
     restart_after: int = 3
 
     @classmethod
@@ -113,5 +120,8 @@ class RegistrationConfig:
         if not self.min_range < self.max_range:
             raise RegistrationError(f"RegistrationConfig: min_range {self.min_range} must be "
                                     f"below max_range {self.max_range}")
+        if not self.consistency_level <= 1:
+            raise RegistrationError("RegistrationConfig.consistency_level: a probability, "
+                                    f"got {self.consistency_level}")
         if not self.min_threshold <= self.max_threshold:
             raise RegistrationError("RegistrationConfig: min_threshold > max_threshold")

@@ -3,11 +3,19 @@
 The judgement is what keeps garbage out of the map: too few points, too few matches
 (no overlap), a non-finite or implausibly large correction (divergence) are reported as
 such, with the prior's pose, instead of a pose that merely minimised something.
+
+The matcher also judges itself against the prior: a correction the prior's covariance
+makes implausible (beyond `consistency_level`) is either odometry's failure (a slip, a
+bump) or the matcher's (a wrong minimum: aliasing, a poor map). The map decides: only
+if it fits the scan clearly better at the matched pose than at the prior's (the coarse
+search's likelihood score, independent of ICP's cost) does the match stand; otherwise
+the scan keeps the prior's pose, reported INCONSISTENT, and stays out of the map.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 from scanmap.registration.config import RegistrationConfig
 from scanmap.registration.icp import ALL_AXES, Alignment, align
@@ -15,7 +23,7 @@ from scanmap.registration.lie import PLANAR_AXES, between
 from scanmap.registration.local_map import LocalMap
 from scanmap.registration.preprocess import Source
 from scanmap.registration.prior import Prior
-from scanmap.registration.recovery import coarse_search
+from scanmap.registration.recovery import coarse_search, pose_scores
 from scanmap.registration.result import RegistrationResult, RegistrationStatus
 
 _RECOVERY_GAIN = 0.1  # the coarse search must beat the guess's score by this much
@@ -51,6 +59,14 @@ def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: 
                         f"correction of {moved:.2f} m, {np.degrees(turned):.0f} deg from the "
                         "guess is beyond max_correction / max_rotation", fitness)
     axes = PLANAR_AXES if config.planar else ALL_AXES
+    distance2 = float(correction[axes] @ prior.information(axes) @ correction[axes])
+    if distance2 > chi2.ppf(config.consistency_level, len(axes)):
+        matched, guessed = pose_scores(source, local_map, [best.pose, prior.pose], config)
+        if matched < guessed + _RECOVERY_GAIN:
+            return _failure(prior, RegistrationStatus.INCONSISTENT, len(source),
+                            f"correction {np.sqrt(distance2):.1f} sigma from the prior, and "
+                            f"the map fits it no better (score {matched:.2f} against "
+                            f"{guessed:.2f})", fitness)
     directions = np.zeros((int(best.degeneracy.degenerate.sum()), 6))
     directions[:, axes] = best.degeneracy.degenerate_directions
     return RegistrationResult(pose=best.pose, covariance=best.covariance,

@@ -6,7 +6,7 @@ matching (Olson, ICRA 2009): the map's usable voxels, seen from above, are raste
 into a likelihood grid (a Gaussian of the distance to the nearest map point), and every
 yaw and integer-cell shift within the window scores the scan's points by a sum of grid
 lookups. Among near-best candidates the one closest to the guess wins, so symmetric or
-degenerate places do not jump.
+degenerate places do not jump. `pose_scores` scores given poses on the same grid.
 """
 
 from __future__ import annotations
@@ -26,27 +26,64 @@ _MAX_POINTS = 400
 _NEAR_BEST = 0.98
 
 
-def coarse_search(source: Source, local_map: LocalMap, guess: np.ndarray,
-                  config: RegistrationConfig) -> tuple[np.ndarray, float, float]:
-    """(best pose, its score, the guess's score); scores are mean likelihoods in [0, 1]."""
+def _points(source: Source, config: RegistrationConfig) -> np.ndarray:
+    """At most _MAX_POINTS of the source's points above the floor band, evenly taken."""
+    points = source.points[source.points[:, 2] >= config.floor_band]
+    if len(points) > _MAX_POINTS:
+        points = points[np.linspace(0, len(points) - 1, _MAX_POINTS).astype(np.int64)]
+    return points
+
+
+def _likelihood_grid(local_map: LocalMap, centre: np.ndarray, reach: float,
+                     config: RegistrationConfig) -> tuple[np.ndarray, np.ndarray] | None:
+    """(grid, its origin) of the usable map voxels within `reach` of `centre`, seen from
+    above: a Gaussian (sigma one cell) of the distance to the nearest; None if none."""
     resolution = local_map.voxel_size / 2.0
     n = len(local_map)
     usable = (local_map.flags[:n] & (LINE if config.planar else PLANE)) != 0
     targets = local_map.means[:n][usable, :2]
-    points = source.points[source.points[:, 2] >= config.floor_band]
-    if len(points) > _MAX_POINTS:
-        points = points[np.linspace(0, len(points) - 1, _MAX_POINTS).astype(np.int64)]
-    centre = guess[:2, 3]
-    reach = config.search_radius + config.max_range + 2 * resolution
     targets = targets[np.all(np.abs(targets - centre) <= reach, axis=1)]
-    if len(targets) == 0 or len(points) == 0:
-        return guess, 0.0, 0.0
+    if len(targets) == 0:
+        return None
     size = math.ceil(2 * reach / resolution) + 1
     origin = centre - reach
     cells = np.floor((targets - origin) / resolution).astype(np.int64)
     occupied = np.zeros((size, size), dtype=bool)
     occupied[cells[:, 0], cells[:, 1]] = True
-    grid = np.exp(-0.5 * distance_transform_edt(~occupied) ** 2)  # sigma: one cell
+    return np.exp(-0.5 * distance_transform_edt(~occupied) ** 2), origin
+
+
+def pose_scores(source: Source, local_map: LocalMap, poses: list[np.ndarray],
+                config: RegistrationConfig) -> list[float]:
+    """The coarse search's score (mean likelihood in [0, 1]) of the scan at each pose."""
+    points = _points(source, config)
+    centre = np.mean([pose[:2, 3] for pose in poses], axis=0)
+    reach = max(float(np.max(np.abs(pose[:2, 3] - centre))) for pose in poses) \
+        + config.max_range + local_map.voxel_size
+    grid = _likelihood_grid(local_map, centre, reach, config)
+    if grid is None or len(points) == 0:
+        return [0.0] * len(poses)
+    grid, origin = grid
+    resolution = local_map.voxel_size / 2.0
+    scores = []
+    for pose in poses:
+        xy = points @ pose[:3, :3].T[:, :2] + pose[:2, 3] - origin
+        cells = np.floor(xy / resolution).astype(np.int64)
+        scores.append(float(_shift_scores(grid, cells, 0)[0, 0]))
+    return scores
+
+
+def coarse_search(source: Source, local_map: LocalMap, guess: np.ndarray,
+                  config: RegistrationConfig) -> tuple[np.ndarray, float, float]:
+    """(best pose, its score, the guess's score); scores are mean likelihoods in [0, 1]."""
+    resolution = local_map.voxel_size / 2.0
+    points = _points(source, config)
+    centre = guess[:2, 3]
+    reach = config.search_radius + config.max_range + 2 * resolution
+    grid = _likelihood_grid(local_map, centre, reach, config)
+    if grid is None or len(points) == 0:
+        return guess, 0.0, 0.0
+    grid, origin = grid
     shifts = math.ceil(config.search_radius / resolution)
     yaw_step = resolution / max(float(np.sqrt(np.mean(np.sum(points[:, :2] ** 2, axis=1)))),
                                 resolution)  # a cell at the points' RMS range

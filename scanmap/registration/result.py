@@ -18,6 +18,7 @@ class RegistrationStatus(enum.Enum):
     TOO_FEW_POINTS = "too_few_points"
     NO_OVERLAP = "no_overlap"
     DIVERGED = "diverged"
+    INCONSISTENT = "inconsistent"  # disagrees with the prior, and the map does not side
 
 
 @dataclass(frozen=True, eq=False)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -20,6 +22,7 @@ from scanmap_driver.errors import RegistrationError
 from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose, wrap_angle
 from tests.scanmap.registration.scenes import (
+    Scene,
     corridor,
     make_scan,
     office,
@@ -133,6 +136,47 @@ def test_round_room_rotation_is_degenerate_and_taken_from_odometry():
         @ direction
     # Across the symmetry the walls place the robot: its distance to the centre is right.
     assert np.hypot(*pose[:2, 3]) == pytest.approx(np.hypot(*truth[:2]), abs=0.003)
+
+
+def _with_box(x: float):
+    """The featureless corridor with one box against its left wall, starting at `x`."""
+    walls = corridor(with_features=False)
+    return Scene([*walls.boxes, ((x, 0.25, 0.0), (x + 0.4, 0.75, 0.8))])
+
+
+@pytest.mark.parametrize("pushed", [0.06, 0.08])
+def test_a_moved_box_does_not_drag_a_corridor_pose_away_from_good_odometry(pushed):
+    # The box is the corridor's only feature along its axis, and since the map was made
+    # someone pushed it: ICP follows the box, which the odometry's covariance says is
+    # 5-8 sigma away. The map does not fit the scan clearly better there, so the scan
+    # keeps the odometry's pose; with the check off, the box drags it.
+    rng = np.random.default_rng(17)
+    local_map = _map_of(_with_box(2.0), [(0.0, 0.0, 0.0), (0.1, 0.0, 0.0)], rng)
+    truth = (0.2, 0.0, 0.0)
+    scan = make_scan(_with_box(2.0 + pushed), truth, rng)
+    source = prepare_source(scan.points, CONFIG, scan.range_sigma)
+    odometry = Prior(se2_to_pose(0.203, -0.002, 0.001),
+                     NOISE.odometry_covariance(se2_to_pose(0.1, 0.0, 0.0)))
+    checked = register_scan(source, local_map, odometry, 0.2, CONFIG)
+    unchecked = register_scan(source, local_map, odometry, 0.2,
+                              replace(CONFIG, consistency_level=1.0))
+    assert checked.status is RegistrationStatus.INCONSISTENT and not checked.ok
+    np.testing.assert_array_equal(checked.pose, odometry.pose)
+    assert np.all(np.abs(_error(checked, truth)) < [0.005, 0.005, 0.002])
+    assert unchecked.ok and _error(unchecked, truth)[0] < -pushed / 2
+
+
+def test_a_wheel_slip_the_map_shows_is_still_corrected():
+    # Odometry 0.15 m and 3 deg off after a 0.3 m step (7 sigma): the office's walls and
+    # furniture fit the scan clearly better at the matched pose, so the match stands.
+    rng = np.random.default_rng(18)
+    truth = (0.3, -0.2, 0.4)
+    result, prior = _register(office(), [(0.0, 0.0, 0.3), (0.15, -0.1, 0.35)], truth,
+                              (0.42, -0.11, 0.45), rng, threshold=0.3)
+    assert between(prior.pose, result.pose)[:2] @ between(prior.pose, result.pose)[:2] \
+        > 5 ** 2 * prior.covariance[0, 0]
+    assert result.status is RegistrationStatus.OK
+    assert np.all(np.abs(_error(result, truth)) < [0.005, 0.005, 0.002])
 
 
 def _with_bad_points(scan: Scan) -> Scan:

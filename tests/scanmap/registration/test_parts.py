@@ -81,6 +81,7 @@ def test_bad_priors_are_refused(pose, covariance, fragment):
     ({"max_range": 0.2}, "min_range"),
     ({"min_threshold": 0.5, "max_threshold": 0.1}, "min_threshold"),
     ({"map_radius": "far"}, "map_radius"),
+    ({"consistency_level": 1.5}, "consistency_level"),
 ])
 def test_bad_settings_are_refused_by_name(changes, fragment):
     with pytest.raises(RegistrationError, match=fragment):
