@@ -141,3 +141,21 @@ def _check_sizes(npz: np.lib.npyio.NpzFile) -> None:
         if claimed > info.file_size or info.file_size > _MAX_DEFLATE * info.compress_size + 4096:
             raise ValueError(f"{info.filename}: its header claims {claimed} bytes, the member "
                              f"holds {info.file_size} ({info.compress_size} compressed)")
+
+
+def exact_array(raw: np.ndarray, where: str, dtype: type | np.dtype,
+                error: type[ScanmapError], allow_nan: bool = False) -> np.ndarray:
+    """`raw` as `dtype` when every value survives the conversion unchanged: integers not
+    wrapped (a colour of -1 is refused, not read as 255), floats finite after it (unless
+    NaN is allowed); else `error` naming `where`."""
+    target = np.dtype(dtype)
+    if raw.dtype.kind not in ("iu" if target.kind in "iu" else "iuf"):
+        raise error(f"{where}: expected {target.name} values, got {raw.dtype}")
+    with np.errstate(all="ignore"):
+        value = raw.astype(target)
+    if target.kind in "iu":
+        if not np.array_equal(value, raw):
+            raise error(f"{where}: values outside the range of {target.name}")
+    elif not np.isfinite(np.where(np.isnan(raw), 0.0, value) if allow_nan else value).all():
+        raise error(f"{where}: expected finite values (no NaN, inf or float overflow)")
+    return value

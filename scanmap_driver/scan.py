@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ScanError
-from .files import atomic_path, load_npz, save_npz
+from .files import atomic_path, exact_array, load_npz, save_npz
 
 FORMAT_VERSION = 1
 _PER_POINT = {
@@ -100,14 +100,14 @@ class Scan:
         version = _scalar(arrays, "format_version", path, FORMAT_VERSION)
         if version != FORMAT_VERSION:
             raise ScanError(f"{path}: format_version {version} is not {FORMAT_VERSION}")
-        fields = {name: _stored(arrays[name], f"{path}: {name}", dtype)
+        fields = {name: exact_array(arrays[name], f"{path}: {name}", dtype, ScanError)
                   for name, (dtype, _) in _PER_POINT.items()}
         if (fields["frame_index"] < 0).any() or (fields["range_sigma"] < 0).any():
             raise ScanError(f"{path}: frame_index and range_sigma: expected values >= 0")
         poses = {}
         for name in ("odom_start", "odom_end"):
-            pose = _stored(arrays.get(name, _NO_POSE), f"{path}: {name}", np.float64,
-                           allow_nan=True)
+            pose = exact_array(arrays.get(name, _NO_POSE), f"{path}: {name}", np.float64,
+                               ScanError, allow_nan=True)
             if pose.shape != (4, 4) or not (np.isfinite(pose).all() or np.isnan(pose).all()):
                 raise ScanError(f"{path}: {name}: expected a finite 4x4 pose or all NaN")
             poses[name] = pose
@@ -134,26 +134,12 @@ class Scan:
             os.replace(tmp_ply, tmp)
 
 
-def _stored(raw: np.ndarray, where: str, dtype: type, allow_nan: bool = False) -> np.ndarray:
-    """`raw` as `dtype` when every value survives the conversion unchanged (finite floats,
-    unless NaN is allowed); else ScanError naming `where`."""
-    target = np.dtype(dtype)
-    if raw.dtype.kind not in ("iu" if target.kind in "iu" else "iuf"):
-        raise ScanError(f"{where}: expected {target.name} values, got {raw.dtype}")
-    with np.errstate(all="ignore"):
-        value = raw.astype(target)
-    if target.kind in "iu":
-        if not np.array_equal(value, raw):
-            raise ScanError(f"{where}: values outside the range of {target.name}")
-    elif not np.isfinite(np.where(np.isnan(raw), 0.0, value) if allow_nan else value).all():
-        raise ScanError(f"{where}: expected finite values (no NaN, inf or float overflow)")
-    return value
-
-
 def _scalar(arrays: dict[str, np.ndarray], name: str, path: str | os.PathLike[str],
             default: float) -> float:
     """A finite number stored as a 0-d array (`default` when absent)."""
-    value = _stored(np.asarray(arrays.get(name, default)), f"{path}: {name}", np.float64)
+    value = exact_array(np.asarray(arrays.get(name, default)), f"{path}: {name}", np.float64,
+                        ScanError)
     if value.shape != ():
         raise ScanError(f"{path}: {name}: expected a single number, got shape {value.shape}")
     return float(value)
+

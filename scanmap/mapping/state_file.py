@@ -40,11 +40,14 @@ from scanmap.io import map_files as map_io
 from scanmap.mapping.config import MapperConfig
 from scanmap.navigation.floor import Segmentation
 from scanmap_driver.errors import CalibrationError, MapError
-from scanmap_driver.files import load_npz, save_npz
+from scanmap_driver.files import exact_array, load_npz, save_npz
 from scanmap_driver.scanner_model import ScannerModel
 
 FORMAT = "scanmap.mapper/1"
 _TRAJECTORY = ("stamps", "poses", "index", "status", "odometry")
+_DTYPES = {"stamps": np.float64, "poses": np.float64, "index": np.int64,
+           "odometry": np.float64, "resume_points": np.float32, "resume_sigma": np.float32,
+           "points": np.float32, "point_colors": np.uint8}
 _LOOPS = "loop_closure_"
 _LOOP_ARRAYS = ("poses", "edges", "measurements", "information", "clouds", "cloud_sizes",
                 "keyframes", "kept_points", "kept_origins", "kept_sizes", "kept_stamps")
@@ -111,6 +114,12 @@ def load_state(path: str | os.PathLike[str]) -> MapperState:
     except CalibrationError as exc:
         raise MapError(str(exc)) from None
     trajectory = {name: arrays[f"trajectory_{name}"] for name in _TRAJECTORY}
+    if trajectory["status"].dtype.kind != "U":
+        raise MapError(f"{path}: trajectory_status: expected text")
+    for name, dtype in _DTYPES.items():  # values exactly as stored: no wrap, NaN or inf
+        table, key = (trajectory, f"trajectory_{name}") if name in trajectory else (arrays, name)
+        table[name] = exact_array(table[name], f"{path}: {key}", dtype, MapError,
+                                  allow_nan=name == "odometry")
     n = trajectory["stamps"].shape[0] if trajectory["stamps"].ndim == 1 else -1
     shapes = {"stamps": (n,), "poses": (n, 4, 4), "index": (n,), "status": (n,),
               "odometry": (n, 4, 4)}
@@ -120,9 +129,10 @@ def load_state(path: str | os.PathLike[str]) -> MapperState:
                            f"got {trajectory[name].shape}")
     if not np.isfinite(trajectory["poses"]).all():
         raise MapError(f"{path}: trajectory_poses holds non-finite values")
-    m = arrays["resume_points"].shape[0]
+    m = len(arrays["resume_points"]) if arrays["resume_points"].ndim else -1
     _check_points(arrays, "resume_points", "resume_sigma", (m,), path)
-    _check_points(arrays, "points", "point_colors", (arrays["points"].shape[0], 3), path)
+    points = len(arrays["points"]) if arrays["points"].ndim else -1
+    _check_points(arrays, "points", "point_colors", (points, 3), path)
     loops = {name[len(_LOOPS):]: value for name, value in arrays.items()
              if name.startswith(_LOOPS)}
     if loops:

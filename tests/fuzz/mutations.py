@@ -130,6 +130,9 @@ def mutated_json(draw: st.DrawFn, tree: Any) -> str:
 
 def _hostile_arrays(value: np.ndarray) -> list[np.ndarray]:
     """Wrong dtypes and shapes, NaN and inf, negative and huge values for one array."""
+    if value.dtype.kind in "US":  # text (JSON in a 0-d array)
+        return [np.array(1.5), np.zeros((2, 2)), np.array(""), np.array("{"), np.array("[]"),
+                np.array(["a", "b"]), np.array('{"unexpected": NaN}')]
     out = [value.astype(np.int16) - 1, value.astype(np.float64) * 1e300,
            value.astype(np.complex128), value.astype(str), value.astype(bool),
            np.zeros((0,) + value.shape[1:], value.dtype), value.reshape(-1), value[None],
@@ -164,10 +167,12 @@ def huge_header_npz(arrays: dict[str, np.ndarray], key: str) -> bytes:
 
 
 @st.composite
-def mutated_npz(draw: st.DrawFn, arrays: dict[str, np.ndarray]) -> bytes:
-    """The npz of `arrays` with one array deleted, replaced by a hostile one, or given a
-    header that claims 10^12 elements; or the file mutated as bytes."""
-    key = draw(st.sampled_from(sorted(arrays)))
+def mutated_npz(draw: st.DrawFn, arrays: dict[str, np.ndarray],
+                keys: list[str] | None = None) -> bytes:
+    """The npz of `arrays` with one array (of `keys`, default all) deleted, replaced by a
+    hostile one, or given a header that claims 10^12 elements; or the file mutated as
+    bytes."""
+    key = draw(st.sampled_from(sorted(arrays) if keys is None else keys))
     action = draw(st.sampled_from(["delete", "hostile", "hostile", "hostile", "huge", "bytes"]))
     if action == "bytes":
         return draw(mutated_bytes(npz_bytes(arrays)))
