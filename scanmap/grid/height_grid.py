@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -135,7 +135,9 @@ class CellLayers:
     origin: (x, y) of the lower-left corner of cell [0, 0]. levels: (ny, nx, K, 5)
     float32 records (lo, hi, log-odds, mean hit x and y offset from the cell centre);
     counts: (ny, nx, K, 2) uint32 (hits, passes); nlev: levels in use; seen: observed
-    height mask; updated: last update time (NaN where never updated).
+    height mask; updated: last update time (NaN where never updated). stood: (M, 2) x, y
+    of the sensor (the middle of each scan's ray origins) at the scans inserted since the
+    grid was made that lie in the window: floor the robot stood on (not kept in map files).
     """
 
     origin: tuple[float, float]
@@ -147,6 +149,7 @@ class CellLayers:
     nlev: np.ndarray
     seen: np.ndarray
     updated: np.ndarray
+    stood: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -184,6 +187,7 @@ class HeightGrid:
         self.stamp = math.nan  # time of the newest insertion
         self._window_origin: tuple[float, float] | None = None
         self._scan_times = [math.nan]  # time of each scan id; id 0 = never
+        self._stood: list[tuple[float, float]] = []  # sensor x, y per inserted scan
         cells, levels = c.tile_cells ** 2, c.tile_cells ** 2 * c.levels
         self._lev_f = np.zeros((0, levels, gk.N_FLOAT_FIELDS), np.float32)
         self._lev_n = np.zeros((0, levels, gk.N_INT_FIELDS), np.uint32)
@@ -332,6 +336,9 @@ class HeightGrid:
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
+            usable = origins[cls == gk.POINT_OK, :2]
+            if len(usable):
+                self._stood.append(tuple(0.5 * (usable.min(axis=0) + usable.max(axis=0))))
         counts = np.bincount(cls, minlength=5)
         return InsertStats(inserted=hits, nonfinite=int(counts[gk.POINT_NONFINITE]),
                            outside_window=int(counts[gk.POINT_OUTSIDE_WINDOW]),
@@ -381,11 +388,13 @@ class HeightGrid:
             gk.extract_window(self._tile_index, lev_f, lev_n, nlev, cells, self._shift, k,
                               ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan)
             out_updated = np.asarray(self._scan_times)[out_scan]
+            stood = np.array(self._stood, np.float64).reshape(-1, 2)
         origin = (round(c.corner + ix0 * c.resolution, 9), round(c.corner + iy0 * c.resolution, 9))
+        inside = ((stood >= (xmin, ymin)) & (stood < (xmax, ymax))).all(axis=1)
         return CellLayers(origin=origin,
                           resolution=c.resolution, z_min=c.z_min, mask_dz=c.mask_dz,
                           levels=out_f, counts=out_n, nlev=out_nlev, seen=out_seen,
-                          updated=out_updated)
+                          updated=out_updated, stood=stood[inside])
 
     # -- whole-state copy (map files) --------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:

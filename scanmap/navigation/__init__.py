@@ -12,6 +12,7 @@ from scanmap.navigation.costmap import (
 )
 from scanmap.navigation.distance_field import distance_transform
 from scanmap.navigation.floor import (
+    DROP_OFF,
     FREE,
     OBSTACLE,
     UNKNOWN,
@@ -31,6 +32,7 @@ from scanmap.navigation.obstacles import (
 )
 
 __all__ = [
+    "DROP_OFF",
     "FREE",
     "INSCRIBED",
     "LETHAL",

@@ -12,7 +12,7 @@ from numba import njit
 
 from scanmap.grid import _kernels as gk
 
-UNKNOWN, FREE, OBSTACLE = 0, 1, 2  # cell states of `Segmentation.state`
+UNKNOWN, FREE, OBSTACLE, DROP_OFF = 0, 1, 2, 3  # cell states of `Segmentation.state`
 # Queries farther than this (m) from the map origin, or not finite, are invalid: a pose
 # from a diverged filter. It keeps every cell index and squared distance of a query
 # exact in int64 and float64.
@@ -138,6 +138,71 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float) -> np.n
                         queue[tail] = yy * nx + xx
                         tail += 1
     return inside
+
+
+@njit(cache=True, nogil=True)
+def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -> np.ndarray:
+    """Slope (rad) of the plane fitted to each candidate cell's floor heights and those of
+    the candidates within `radius` cells whose heights differ from it by at most
+    `max_step` (the other side of a step is another surface); NaN with fewer than six."""
+    ny, nx = heights.shape
+    out = np.full((ny, nx), np.nan, np.float32)
+    for y in range(ny):
+        for x in range(nx):
+            hc = heights[y, x]
+            if np.isnan(hc):
+                continue
+            n, sx, sy, sz, sxx, sxy, syy, sxz, syz = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            for yy in range(max(y - radius, 0), min(y + radius + 1, ny)):
+                for xx in range(max(x - radius, 0), min(x + radius + 1, nx)):
+                    dz = heights[yy, xx] - hc
+                    if abs(dz) <= max_step:  # False for NaN
+                        px, py = (xx - x) * res, (yy - y) * res
+                        n += 1
+                        sx += px
+                        sy += py
+                        sz += dz
+                        sxx += px * px
+                        sxy += px * py
+                        syy += py * py
+                        sxz += px * dz
+                        syz += py * dz
+            if n < 6:
+                continue
+            cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
+            cxz, cyz = sxz - sx * sz / n, syz - sy * sz / n
+            det = cxx * cyy - cxy * cxy
+            if det <= 1e-12 * res ** 4:
+                continue
+            gx = (cyy * cxz - cxy * cyz) / det
+            gy = (cxx * cyz - cxy * cxz) / det
+            out[y, x] = math.atan(math.hypot(gx, gy))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def below_floor(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
+                floor_height: np.ndarray, step: float, z_min: float,
+                mask_dz: float) -> np.ndarray:
+    """Cells where the floor is missing: a level lies wholly more than `step` below the
+    floor height, or rays passed (seen free) a bin or more below that."""
+    ny, nx = nlev.shape
+    out = np.zeros((ny, nx), np.bool_)
+    for y in range(ny):
+        for x in range(nx):
+            f = floor_height[y, x]
+            if np.isnan(f):
+                continue
+            limit = f - step
+            for k in range(nlev[y, x]):
+                if levels[y, x, k, gk.HI] < limit:
+                    out[y, x] = True
+            bins = math.floor((limit - z_min) / mask_dz) - 1  # bins wholly below limit - dz
+            if bins > 0:
+                low = (np.uint64(1) << np.uint64(min(bins, 63))) - np.uint64(1)
+                if seen[y, x] & low:
+                    out[y, x] = True
+    return out
 
 
 @njit(cache=True, nogil=True)

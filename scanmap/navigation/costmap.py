@@ -1,6 +1,6 @@
 """Costmaps for planners, in Nav2's conventions, and OccupancyGrid-style int8 arrays.
 
-Costs (nav2_costmap_2d): 254 LETHAL on obstacle cells, 253 INSCRIBED within the robot's
+Costs (nav2_costmap_2d): 254 LETHAL on obstacle and drop-off cells, 253 INSCRIBED within the robot's
 inscribed radius, then (253 - 1) * exp(-cost_scaling_factor * (d - inscribed)) out to
 the inflation radius (d: distance between cell centres in metres), 0 FREE, and 255
 NO_INFORMATION on unknown cells (kept unless inflated to INSCRIBED or more, Nav2's
@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from scanmap.navigation.distance_field import distance_transform
-from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, Segmentation
+from scanmap.navigation.floor import DROP_OFF, FREE, OBSTACLE, UNKNOWN, Segmentation
 from scanmap_driver.errors import MapError
 
 FREE_SPACE, INSCRIBED, LETHAL, NO_INFORMATION = 0, 253, 254, 255
@@ -30,7 +30,7 @@ def inflate(seg: Segmentation, inscribed_radius: float | None = None,
                         ("cost_scaling_factor", cost_scaling_factor)):
         if not (math.isfinite(value) and value >= 0):
             raise MapError(f"inflate: {name} must be a finite number >= 0, got {value}")
-    distance, _ = distance_transform(seg.state == OBSTACLE)
+    distance, _ = distance_transform((seg.state == OBSTACLE) | (seg.state == DROP_OFF))
     d = distance.astype(np.float64) * seg.resolution
     decay = (INSCRIBED - 1) * np.exp(-cost_scaling_factor * (d - inscribed))
     inflated = np.where(d <= inscribed, INSCRIBED, decay.astype(np.int64))
@@ -62,9 +62,10 @@ def occupancy_grid(seg: Segmentation) -> np.ndarray:
     """(ny, nx) int8 occupancy in percent: -1 unknown, 0 free, and for obstacle cells the
     probability of their most certain level in the robot band (sigmoid of log-odds; 100
     when the log-odds are NaN: an obstacle cell is never written less than occupied
-    for want of a number)."""
+    for want of a number); 100 for drop-off cells (nothing to stand on)."""
     out = np.full(seg.shape, -1, np.int8)
     out[seg.state == FREE] = 0
+    out[seg.state == DROP_OFF] = 100
     obstacle = seg.state == OBSTACLE
     p = 1.0 / (1.0 + np.exp(-seg.band_logodds[obstacle].astype(np.float64)))
     out[obstacle] = np.clip(np.rint(100.0 * np.nan_to_num(p, nan=1.0)), 0, 100).astype(np.int8)

@@ -9,12 +9,36 @@ the floor region by sequential RANSAC and reported (the floor, a ramp, a raised 
 Cells without observed floor (under objects, under occluded table tops) take the height
 of the nearest floor cell within `fill_radius`, and beyond it that of the largest plane.
 
+Floor per cell: each candidate's slope comes from a plane fitted to the candidates
+within `slope_reach` at most a step from it; a cell steeper than `max_slope` (default 15
+deg) does not join the floor: it is never FREE, and an OBSTACLE where its surface rises
+into the robot's band. So a ramp within max_slope and a step within the robot's step
+height (default 5 cm) are driven on; a steeper ramp or a higher step is not.
+
+Negative obstacles: a cell not on the floor where a level lies wholly more than a step
+below the floor height around it, or where rays passed more than a step below it (the
+floor is not where it must be), is a DROP_OFF; the drop-off spreads up to `drop_reach`
+through cells without observed floor (the shadow of the rim), so its edge is the last
+floor seen. DROP_OFF is never free and lethal in the costmap.
+
+No return is not free: a cell without any hit in or around it (3 x 3) where rays passed
+within `floor_probe` (0.3 m) of the floor height - the laser stripe ran over it and
+nothing came back: black carpet, a hole nothing returned from - is never FREE, nor is a
+cell too steep to be floor. The exceptions are known floor: the robot's footprint at the poses it
+scanned from (it stood there; FREE unless something occupies its band), the assumed
+`fallback_floor` of a 2-D laser, and a patch without any hit no larger than `max_hole`
+(0.3 m, each side) enclosed by floor whose heights differ by at most a step (a gap
+between the laser's samples). A real hole of max_hole or less still returns hits below
+the floor, or lets rays pass below it, so the drop-off rule catches it first.
+
 Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
-height. A cell is FREE only if its floor height is known, nothing occupies the band,
+height. A cell is FREE only if its floor height is known and not unlit (above), nothing
+occupies the band,
 rays have seen at least `min_coverage` (half) of the band's height bins free there, and
 no height it has not seen is suspect: occupied (within two height bins) in a
 neighbouring cell, or possibly under an overhanging board (a table top seen only at its
-rim); otherwise it is UNKNOWN.
+rim); otherwise it is UNKNOWN. The footprint cells are FREE unless something occupies
+their band.
 
 Why the map of one scan is mostly UNKNOWN: a cell is seen free at the heights that the
 rays crossing it have there, and every ray of this scanner falls from the camera (1 m
@@ -34,10 +58,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from scanmap.grid.height_grid import CellLayers
 from scanmap.navigation import _kernels as nk
-from scanmap.navigation._kernels import FREE as FREE  # re-exported: the cell states
+from scanmap.navigation._kernels import DROP_OFF as DROP_OFF  # re-exported: the cell states
+from scanmap.navigation._kernels import FREE as FREE
 from scanmap.navigation._kernels import OBSTACLE as OBSTACLE
 from scanmap.navigation._kernels import UNKNOWN as UNKNOWN
 from scanmap.navigation.distance_field import distance_transform
@@ -83,6 +109,12 @@ class FloorConfig:
     only at its rim: this scanner's laser, 0.5 m up, never lights a top above it) are
     assumed to extend over cells that never saw those heights; overhang_thickness: the
     thickest level taken for such a board (a table top, a seat, a shelf).
+    slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over.
+    drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
+    without observed floor. max_hole: the largest patch without hits (m, each side of its
+    bounding box) inside consistent floor that is taken as floor. floor_probe: rays that
+    passed this low (m) over a cell's floor should have lit it (the stripe runs along
+    them); without a return there it is not FREE.
     """
 
     thickness: float = 0.06
@@ -98,6 +130,10 @@ class FloorConfig:
     ransac_iterations: int = 200
     seed: int = 0
     detect: bool = True
+    slope_reach: float = 0.1
+    drop_reach: float = 0.5
+    max_hole: float = 0.3
+    floor_probe: float = 0.3
 
 
 @dataclass(frozen=True)
@@ -118,10 +154,12 @@ class FloorPlane:
 class Segmentation:
     """Floor and obstacle layers of a window of the grid (row = y, column = x).
 
-    floor_height: (ny, nx) float32, NaN where unknown. is_floor: open floor: the floor was
-    seen there, nothing is in the robot's band, and nothing may hang above unseen (not
-    the floor under a table). Traversable = is_floor and FREE (the band was seen).
-    state: UNKNOWN / FREE / OBSTACLE per cell. points: (ny, nx, 2) float32, the obstacle
+    floor_height: (ny, nx) float32, NaN where unknown. is_floor: open floor: known floor
+    (seen there, stood on, or a small gap in it), nothing is in the robot's band, and
+    nothing may hang above unseen (not the floor under a table). Traversable = is_floor
+    and FREE (the band was seen). slope: (ny, nx) float32 floor slope (rad) of the cells
+    with observed floor, NaN elsewhere.
+    state: UNKNOWN / FREE / OBSTACLE / DROP_OFF per cell. points: (ny, nx, 2) float32, the obstacle
     point of each obstacle cell (mean of its hits in the band), the centre elsewhere.
     band_logodds: (ny, nx) float32, highest log-odds in the band (NaN where none).
     updated: (ny, nx) float64 last update time.
@@ -137,6 +175,7 @@ class Segmentation:
     points: np.ndarray
     band_logodds: np.ndarray
     updated: np.ndarray
+    slope: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -212,16 +251,19 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     res = layers.resolution
     xs, ys = layers.cell_centers()
     cand = nk.floor_candidates(layers.levels, layers.nlev, params.thickness, params.clearance)
-    has = ~np.isnan(cand)
+    slope = nk.local_slope(cand, max(round(params.slope_reach / res), 1), robot.step_height, res)
+    steep = slope > params.max_slope  # False for NaN
+    level = np.where(steep, np.nan, cand)
+    has = ~np.isnan(level)
     gy, gx = np.nonzero(has)
-    cand_points = np.column_stack([xs[gx], ys[gy], cand[gy, gx]])
+    cand_points = np.column_stack([xs[gx], ys[gy], level[gy, gx]])
     is_floor = np.zeros((ny, nx), bool)
     planes: tuple[FloorPlane, ...] = ()
     dominant = ransac_plane(cand_points, params, rng) if params.detect else None
     if dominant is not None and dominant[2].sum() >= params.min_plane_cells:
         seeds = np.zeros((ny, nx), bool)
         seeds[gy[dominant[2]], gx[dominant[2]]] = True
-        is_floor = nk.grow_region(cand, seeds, robot.step_height)
+        is_floor = nk.grow_region(level, seeds, robot.step_height)
         fy, fx = np.nonzero(is_floor)
         planes = _planes_of(np.column_stack([xs[fx], ys[fy], cand[fy, fx]]), params, rng)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
@@ -232,8 +274,31 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     if planes:  # farther out, the largest floor plane
         far = np.isnan(floor_height)
         floor_height[far] = planes[0].height_at(*np.meshgrid(xs, ys))[far]
-    if fallback_floor is not None:
-        floor_height[np.isnan(floor_height)] = fallback_floor
+    assumed = np.zeros((ny, nx), bool)
+    if fallback_floor is not None:  # the caller vouches for the floor there
+        assumed = np.isnan(floor_height)
+        floor_height[assumed] = fallback_floor
+    stood = _footprint_cells(layers, robot.radius) & ~is_floor
+    # Below the lowest floor near the cell (a cell between two floors at a step is neither's)
+    lowest = ndimage.minimum_filter(np.nan_to_num(floor_height, nan=np.inf), size=5)
+    lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
+    drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
+                          robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
+    holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
+                         round(params.max_hole / res), robot.step_height)
+    if drop.any():  # through the rim's shadow (unobserved, not a gap in the floor)
+        drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool),
+                                       iterations=max(round(params.drop_reach / res), 1),
+                                       mask=~is_floor & ~stood & ~holes & (layers.nlev == 0)
+                                       ) | drop
+    holes &= ~drop
+    # Floor the laser should have lit (rays passed low over it) and did not return from,
+    # with no hit in the cells around either (not the foot of a surface a ray ended on)
+    probed = _lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
+        <= floor_height + params.floor_probe
+    bare = ~ndimage.maximum_filter(layers.nlev > 0, size=3)
+    unlit = (probed & bare) | steep
+    unlit &= ~is_floor & ~stood & ~assumed & ~holes
     state = np.empty((ny, nx), np.uint8)
     points = np.empty((ny, nx, 2), np.float32)
     band_logodds = np.empty((ny, nx), np.float32)
@@ -243,8 +308,61 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                   params.min_coverage,
                   round(params.overhang_reach / res), params.overhang_thickness,
                   layers.origin[0], layers.origin[1], res, state, points, band_logodds, covered)
+    state[(state == FREE) & unlit] = UNKNOWN
+    state[stood & (state != OBSTACLE)] = FREE
+    state[drop & (state != OBSTACLE)] = DROP_OFF
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
-                        is_floor=is_floor & (state != OBSTACLE) & ~covered, planes=planes,
-                        state=state, points=points, band_logodds=band_logodds,
-                        updated=layers.updated)
+                        is_floor=(is_floor | stood | holes) & (state != OBSTACLE) & ~drop
+                        & ~covered,
+                        planes=planes, state=state, points=points, band_logodds=band_logodds,
+                        updated=layers.updated,
+                        slope=np.where(is_floor, slope, np.nan).astype(np.float32))
+
+
+def _lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:
+    """Bottom height (m) of the lowest height bin rays saw free in each cell (inf: none)."""
+    low = seen & (~seen + np.uint64(1))  # the lowest set bit
+    with np.errstate(divide="ignore"):
+        return z_min + mask_dz * np.log2(low.astype(np.float64))
+
+
+def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
+    """Cells whose centres lie within `radius` of where the sensor stood."""
+    ny, nx = layers.shape
+    out = np.zeros((ny, nx), bool)
+    xs, ys = layers.cell_centers()
+    reach = math.ceil(radius / layers.resolution)
+    for x, y in layers.stood:
+        cx = int(np.floor((x - layers.origin[0]) / layers.resolution))
+        cy = int(np.floor((y - layers.origin[1]) / layers.resolution))
+        x0, x1 = max(cx - reach, 0), min(cx + reach + 1, nx)
+        y0, y1 = max(cy - reach, 0), min(cy + reach + 1, ny)
+        if x0 < x1 and y0 < y1:
+            dx, dy = xs[x0:x1][None, :] - x, ys[y0:y1][:, None] - y
+            out[y0:y1, x0:x1] |= dx * dx + dy * dy <= radius * radius
+    return out
+
+
+def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarray,
+                 drop: np.ndarray, size: int, step: float) -> np.ndarray:
+    """Patches of cells without any hit, at most `size` cells on each side, inside floor
+    (not touching the window's edge) whose heights around them differ by at most `step`,
+    and showing no drop-off."""
+    out = np.zeros(is_floor.shape, bool)
+    labels, _ = ndimage.label(~is_floor, np.ones((3, 3), bool))
+    for index, box in enumerate(ndimage.find_objects(labels), start=1):
+        rows, cols = box
+        if (rows.stop - rows.start > size or cols.stop - cols.start > size
+                or rows.start == 0 or cols.start == 0 or rows.stop == is_floor.shape[0]
+                or cols.stop == is_floor.shape[1]):
+            continue
+        grown = (slice(rows.start - 1, rows.stop + 1), slice(cols.start - 1, cols.stop + 1))
+        patch = labels[grown] == index
+        if nlev[grown][patch].any() or drop[grown][patch].any():
+            continue
+        ring = ndimage.binary_dilation(patch, np.ones((3, 3), bool)) & ~patch
+        heights = floor_height[grown][ring]
+        if heights.max() - heights.min() <= step:
+            out[grown] |= patch
+    return out

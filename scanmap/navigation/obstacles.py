@@ -1,6 +1,7 @@
 """Obstacle queries for a controller: distance, nearest obstacle, virtual range scan, clearance.
 
-A query never calls unknown space free. Two distance fields are kept: one over the
+A query never calls unknown space free, and a drop-off cell (DROP_OFF) counts as an
+obstacle at its centre in every query. Two distance fields are kept: one over the
 obstacle cells, one over every cell not known FREE (obstacles, unknown cells, and
 beyond the window). Distances are exact: to measured surface points (the mean of the
 hits in a cell) and unknown cells' squares, found by a search the fields bound. `distance()` and
@@ -37,6 +38,7 @@ from scanmap.grid.height_grid import HeightGrid
 from scanmap.navigation import _kernels as nk
 from scanmap.navigation.distance_field import distance_transform
 from scanmap.navigation.floor import (
+    DROP_OFF,
     FREE,
     OBSTACLE,
     UNKNOWN,
@@ -135,11 +137,12 @@ class ObstacleSnapshot:
     @classmethod
     def from_segmentation(cls, seg: Segmentation, stamp: float) -> ObstacleSnapshot:
         """Build both distance fields and freeze every array."""
-        _, blocked = distance_transform(seg.state != FREE, pad=1)
-        _, obstacle = distance_transform(seg.state == OBSTACLE, pad=1)
+        solid = np.where(seg.state == DROP_OFF, OBSTACLE, seg.state).astype(seg.state.dtype)
+        _, blocked = distance_transform(solid != FREE, pad=1)
+        _, obstacle = distance_transform(solid == OBSTACLE, pad=1)
         ny, nx = seg.shape
         geometry = np.array([seg.origin[0], seg.origin[1], seg.resolution, nx, ny], np.float64)
-        boxes, points = nk.cell_boxes(seg.state, seg.points, geometry)
+        boxes, points = nk.cell_boxes(solid, seg.points, geometry)
         for array in (seg.state, seg.points, seg.floor_height, seg.is_floor, seg.band_logodds,
                       seg.updated, blocked, obstacle, boxes, points, geometry):
             array.setflags(write=False)
@@ -238,7 +241,7 @@ class ObstacleMap:
         clearance, kind, d, px, py = snap.query(x, y)
         bearing = math.atan2(py - y, px - x) if 0.0 < d < math.inf else math.nan
         return Nearest(d, bearing, (px, py), clearance, age,
-                       QueryStatus.OK if kind == OBSTACLE else QueryStatus.UNKNOWN)
+                       QueryStatus.OK if kind in (OBSTACLE, DROP_OFF) else QueryStatus.UNKNOWN)
 
     def _distances(self, points: np.ndarray, unknown_blocks: bool) -> np.ndarray:
         xy = np.asarray(points, dtype=np.float64)
@@ -314,4 +317,5 @@ class ObstacleMap:
             margin, kind = nk.polygon_margin(in_map, d + reach, s_.state, snap.points,
                                              snap.geometry)
         return Clearance(not margin > 0.0, float(margin), age,
-                         QueryStatus.OK if kind in (OBSTACLE, FREE) else QueryStatus.UNKNOWN)
+                         QueryStatus.OK if kind in (OBSTACLE, DROP_OFF, FREE)
+                         else QueryStatus.UNKNOWN)
