@@ -11,10 +11,12 @@ one, and a stale obstacle field says so.
 
 Loop closure (`MapperConfig.loop_closure.enabled`): each registered scan also goes to a
 `LoopCloser`, which finds and verifies loops and optimises the pose graph in its own
-thread. Poses are registration's poses moved by the newest correction; when an
-optimisation has finished, the next `add` first moves every pose and rebuilds the grid
+thread. Poses are registration's poses moved by the newest correction. When an
+optimisation has finished, the next `add` starts rebuilding the grid in the background
 from each fused scan's points and ray origins kept in base_link (one per grid cell),
-without the frames. Obstacle queries answer from the previous snapshot meanwhile.
+without the frames; the first `add` after the rebuild has finished fuses into it the
+scans mapped meanwhile, swaps it in and moves every pose. Until then the map and the
+obstacle queries stay as they were.
 
 Scans come live from the `Scanner` (`start(ContinuousScanning(...))`: a background
 thread, `mapping_thread`), from a recording or from processed scan files
@@ -36,6 +38,7 @@ import os
 import threading
 import time
 from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -105,6 +108,9 @@ class Mapper:
         self.loop_closer = LoopCloser(c.loop_closure, c.registration) \
             if c.loop_closure.enabled else None
         self._applied = 0  # the loop closer's optimisations the map follows
+        self._rebuilder = ThreadPoolExecutor(1, "scanmap-map-rebuild") \
+            if self.loop_closer is not None else None
+        self._rebuild: tuple[Future, np.ndarray] | None = None  # (grid, its poses)
         # Per scan, with loop closure: its fused points and ray origins in base_link (one
         # per grid cell) and its time, to rebuild the grid at corrected poses; None when
         # the scan was not fused.
@@ -116,7 +122,7 @@ class Mapper:
         clock = StageClock()
         with self._lock:
             closer = self.loop_closer
-            if closer is not None and closer.version != self._applied:
+            if closer is not None and (self._rebuild or closer.version != self._applied):
                 with clock.stage("loop_closure"):
                     self._follow_graph()
             with clock.stage("register"):
@@ -146,20 +152,38 @@ class Mapper:
         optimisation (offline, after the last scan; live, the next `add` does it)."""
         if self.loop_closer is None:
             return
-        self.loop_closer.finish()
         with self._lock:
-            if self.loop_closer.version != self._applied:
-                self._follow_graph()
+            self._settle()
         if self.config.update_obstacles and len(self):
             self.obstacles.update(self.grid, self._obstacle_bounds())
 
-    def _follow_graph(self) -> None:
-        """Move every pose to the loop closer's newest optimisation and rebuild the grid
-        from the kept per-scan points (call with the lock held)."""
-        self._applied = self.loop_closer.version
-        poses = self.loop_closer.corrected_poses()
-        self._poses = list(poses)
-        self.grid = rebuild_grid(self.config.grid, poses, self._contributions)
+    def _settle(self) -> None:
+        """Wait for the loop closer and every rebuild (call with the lock held)."""
+        self.loop_closer.finish()
+        while self._rebuild is not None or self.loop_closer.version != self._applied:
+            self._follow_graph(wait=True)
+
+    def _follow_graph(self, wait: bool = False) -> None:
+        """Keep the map on the loop closer's newest optimisation (call with the lock held):
+        swap in a finished rebuild (`wait`: wait for it), with the scans fused since it
+        started; start a rebuild for a newer optimisation."""
+        closer = self.loop_closer
+        if self._rebuild is not None and (wait or self._rebuild[0].done()):
+            future, poses = self._rebuild
+            self._rebuild = None
+            grid = future.result()
+            n = len(poses)
+            correction = poses[-1] @ invert_pose(closer.graph.poses[n - 1])
+            for k in range(n, len(self._contributions)):
+                self._poses[k] = correction @ closer.graph.poses[k]
+                _insert_kept(grid, self._poses[k], self._contributions[k])
+            self._poses[:n] = list(poses)
+            self.grid = grid
+        if self._rebuild is None and closer.version != self._applied:
+            self._applied = closer.version
+            poses = closer.corrected_poses()
+            self._rebuild = (self._rebuilder.submit(rebuild_grid, self.config.grid, poses,
+                                                    self._contributions[:len(poses)]), poses)
 
     def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
         poses = frame_poses(scan, pose)
@@ -265,7 +289,7 @@ class Mapper:
         """
         with self._lock:
             if self.loop_closer is not None:
-                self.loop_closer.finish()  # the graph of every scan so far
+                self._settle()  # the graph of every scan so far, the map on it
             state = self._state()
         save_state(path, state, segmentation)
 
@@ -369,10 +393,16 @@ def rebuild_grid(config: GridConfig, poses: np.ndarray,
     if config.window is not None:
         grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
     for pose, kept in zip(poses, contributions, strict=True):
-        if kept is not None:
-            points, origins, stamp = kept
-            grid.insert(transform_points(pose, points), transform_points(pose, origins), stamp)
+        _insert_kept(grid, pose, kept)
     return grid
+
+
+def _insert_kept(grid: HeightGrid, pose: np.ndarray,
+                 kept: tuple[np.ndarray, np.ndarray, float] | None) -> None:
+    """Fuse one scan's kept (points, ray origins, time) in base_link at `pose`."""
+    if kept is not None:
+        points, origins, stamp = kept
+        grid.insert(transform_points(pose, points), transform_points(pose, origins), stamp)
 
 
 def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
