@@ -209,3 +209,14 @@ def every_json_mutation(tree: Any) -> Iterator[tuple[tuple, Any]]:
 
 
 _DELETE = object()
+
+
+def every_npz_mutation(arrays: dict[str, np.ndarray], keys: list[str] | None = None
+                       ) -> Iterator[tuple[str, bytes]]:
+    """(key, npz bytes) for every array (of `keys`) deleted, replaced by each hostile array,
+    and given a header claiming 10^12 elements: the sweep sampling may miss."""
+    for key in sorted(arrays) if keys is None else keys:
+        yield key, huge_header_npz(arrays, key)
+        yield key, npz_bytes({k: v for k, v in arrays.items() if k != key})
+        for value in _hostile_arrays(np.asarray(arrays[key])):
+            yield key, npz_bytes(arrays | {key: value})
