@@ -158,6 +158,7 @@ class MotorController:
         self.garbage_lines = 0
         self.events: list[str] = []
         self.faults_seen: list[str] = []
+        self.resets = 0  # BOOT announcements seen: each one a controller reset
         self.info = self._handshake(connect_timeout)
         self._watchdog = self.info.watchdog_ms / 1000.0
         self._heartbeat: threading.Thread | None = None
@@ -387,6 +388,9 @@ class MotorController:
     def _event(self, body: str) -> None:
         self.events.append(body)
         words = body.split()
+        if len(words) >= 2 and words[1] == "BOOT":
+            self.resets += 1
+            log.warning("motor controller on %s reset (%s)", self.port, body)
         if len(words) >= 3 and words[1] == "FAULT":
             self._note_faults(words[2:3])
             log.warning("motor controller on %s reports fault %s", self.port, words[2])

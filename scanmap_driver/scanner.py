@@ -18,10 +18,11 @@ slow consumer never blocks the camera. Scans back to back in a background thread
 `live_recording.write_scan`.
 
 Faults are handled, not hidden: a stall (headings stop advancing while the motor is
-driven), a camera that stops delivering, a motor controller that vanishes, a scan over
-its time limit, Ctrl-C. In each case the motor is braked first, then the frames stop,
-the partial data is kept (`ScanFailed.result`, `Scanner.last_result`), and the error
-says what happened.
+driven, or the encoder disk is unreadable), a camera that stops delivering, a motor
+controller that vanishes or resets, a scan over its time limit, Ctrl-C. In each case the
+motor is braked first, then the frames stop, the partial data is kept
+(`ScanFailed.result`, `Scanner.last_result`), and the error says what happened and when
+(seconds into the scan).
 """
 
 from __future__ import annotations
@@ -177,6 +178,7 @@ class _Sweep:
         self.started = time.monotonic()
         self.dropped_at_start = 0
         self.overflow_at_start = 0
+        self.resets_at_start = 0
 
 
 class Scanner:
@@ -233,6 +235,7 @@ class Scanner:
         sweep = _Sweep(self.settings, self.new_assembler() if self.new_assembler else None)
         sweep.dropped_at_start = self.camera.dropped_frames
         sweep.overflow_at_start = grabber.overflow
+        sweep.resets_at_start = self.motor.resets
         result = None
         try:
             self._sweep(sweep, grabber)
@@ -313,6 +316,9 @@ class Scanner:
                 if status.faults:
                     raise DeviceError("the motor controller reports fault(s) "
                                       f"{','.join(status.faults)}")
+                if self.motor.resets != sweep.resets_at_start:
+                    raise DeviceError("the motor controller reset (it announced BOOT): it "
+                                      f"stopped the motor and forgot the scan; now {status.state}")
                 return
             getattr(self.motor, command)(*args)
         except DeviceError as exc:
@@ -411,8 +417,9 @@ class Scanner:
             result.fault = reason
         self.last_result = result
         note = f"; braking failed too ({stop_error})" if stop_error else "; motor braked"
-        log.error("scan %d: %s%s", self._index, message, note)
-        return ScanFailed(reason, f"scan {self._index}: {message}{note}; "
+        when = f" (at {time.monotonic() - sweep.started:.2f} s into the scan)"
+        log.error("scan %d: %s%s%s", self._index, message, when, note)
+        return ScanFailed(reason, f"scan {self._index}: {message}{when}{note}; "
                                   f"{len(result.scan)} points of {len(sweep.times)} frames kept",
                           result)
 
