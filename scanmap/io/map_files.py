@@ -147,7 +147,10 @@ def read_pgm(path: str | os.PathLike[str]) -> np.ndarray:
         values = data[pos:].split()
         if len(values) < count:
             raise MapError(f"{path}: truncated PGM: {len(values)} of {count} pixels")
-        pixels = np.array(values[:count], dtype=np.int64)
+        try:
+            pixels = np.array([int(v) for v in values[:count]], dtype=np.int64)
+        except ValueError:
+            raise MapError(f"{path}: PGM pixels must be integers") from None
     else:
         dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
         body = data[pos + 1:pos + 1 + count * dtype.itemsize]
@@ -179,7 +182,14 @@ def load_ros_map(path: str | os.PathLike[str]) -> RosMap:
         raise MapError(f"{source}: origin must be a list of 3 finite numbers, got {origin!r}")
     occupied = _number(meta, "occupied_thresh", source)
     free = _number(meta, "free_thresh", source)
-    negate = _number(meta, "negate", source, 0.0) != 0
+    if not 0.0 <= occupied <= 1.0:
+        raise MapError(f"{source}: occupied_thresh must be within 0..1, got {occupied}")
+    if not 0.0 <= free < occupied:
+        raise MapError(f"{source}: free_thresh must be within 0..occupied_thresh "
+                       f"({occupied}), got {free}")
+    negate = _number(meta, "negate", source, 0.0)
+    if negate not in (0.0, 1.0):
+        raise MapError(f"{source}: negate must be 0 or 1, got {negate:g}")
     mode = str(meta.get("mode", "trinary"))
     if mode not in ("trinary", "scale"):
         raise MapError(f"{source}: mode {mode!r} is not supported (trinary, scale)")
@@ -224,6 +234,10 @@ def load_map(path: str | os.PathLike[str]) -> SavedMap:
     required = ("format_version", "config", "resolution", "origin", "tile_coords",
                 "scan_times", "stamp", "lev_f", "lev_n", "lev_flag", "nlev", "cells")
     arrays = load_npz(path, MapError, required=required)
+    for key in ("format_version", "resolution", "stamp"):
+        if arrays[key].shape != () or arrays[key].dtype.kind not in "iuf":
+            raise MapError(f"{path}: {key} must be a real number, got "
+                           f"{arrays[key].dtype} of shape {arrays[key].shape}")
     version = arrays["format_version"]
     if version.shape != () or int(version) != FORMAT_VERSION:
         raise MapError(f"{path}: format_version {version} is not {FORMAT_VERSION}")

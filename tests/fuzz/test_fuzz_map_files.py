@@ -80,16 +80,8 @@ def test_fuzzed_full_map_is_refused_or_read(full_map, tmp_path_factory, data):
             assert saved.grid.config.resolution == float(npz["resolution"])
 
 
-FINDING = "reported, map_files.py is not ours to edit: {} (remove this mark once fixed)"
-
-
 @pytest.mark.parametrize(("field", "value"), [
-    pytest.param("negate", "2", marks=pytest.mark.xfail(strict=True, reason=FINDING.format(
-        "negate other than 0/1 is read as negate: 1"))),
-    pytest.param("occupied_thresh", "2", marks=pytest.mark.xfail(strict=True, reason=FINDING
-                 .format("occupied_thresh outside 0..1 is accepted"))),
-    pytest.param("free_thresh", "0.9", marks=pytest.mark.xfail(strict=True, reason=FINDING
-                 .format("free_thresh above occupied_thresh is accepted"))),
+    ("negate", "2"), ("occupied_thresh", "2"), ("free_thresh", "0.9"),
     ("resolution", "nan"), ("resolution", "-1"), ("origin", "[.nan, 0, 0]"),
 ])
 def test_hostile_yaml_field_is_refused(ros_map, tmp_path, field, value):
@@ -102,8 +94,6 @@ def test_hostile_yaml_field_is_refused(ros_map, tmp_path, field, value):
         load_ros_map(tmp_path / "map.yaml")
 
 
-@pytest.mark.xfail(strict=True, raises=ValueError, reason=FINDING.format(
-    "a non-integer pixel of an ASCII PGM (P2) raises ValueError"))
 def test_ascii_pgm_with_a_non_integer_pixel_is_refused(ros_map, tmp_path):
     (tmp_path / "map.yaml").write_text(ros_map[0])
     (tmp_path / "map.pgm").write_bytes(b"P2\n30 20\n255\n" + b"254 " * 599 + b"1e3\n")
@@ -111,9 +101,6 @@ def test_ascii_pgm_with_a_non_integer_pixel_is_refused(ros_map, tmp_path):
         load_ros_map(tmp_path / "map.yaml")
 
 
-@pytest.mark.xfail(strict=True, raises=TypeError, reason=FINDING.format(
-    "complex format_version / resolution / stamp raise TypeError in load_map and "
-    "HeightGrid.from_state"))
 def test_every_full_map_array_deleted_or_hostile_is_refused_or_read(full_map, tmp_path):
     path = tmp_path / "map.npz"
     for _, data in every_npz_mutation(full_map):
