@@ -23,6 +23,7 @@ import numpy as np
 
 from scanmap.grid import _kernels as gk
 from scanmap_driver.errors import MapError
+from scanmap_driver.files import exact_array
 
 POOL_NAMES = ("lev_f", "lev_n", "lev_flag", "nlev", "cells")
 SAVED_CELL_FIELDS = 2  # observed mask and scan id; the ray-bundle scratch is not saved
@@ -440,7 +441,8 @@ class HeightGrid:
         if (np.asarray(state["nlev"]) > config.levels).any():
             raise MapError(f"{source}: nlev exceeds the {config.levels} levels of the "
                            "configuration")
-        times = np.asarray(state["scan_times"], np.float64)
+        times = exact_array(np.asarray(state["scan_times"]), f"{source}: scan_times",
+                            np.float64, MapError, allow_nan=True)  # NaN: a scan without time
         scan_ids = np.asarray(state["cells"])[..., gk.SCAN]
         if times.ndim != 1 or not len(times) or (n and scan_ids.max() >= len(times)):
             raise MapError(f"{source}: scan_times does not cover the scan ids of the cells")

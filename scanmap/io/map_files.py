@@ -27,7 +27,7 @@ import numpy as np
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap_driver.errors import MapError
-from scanmap_driver.files import atomic_path, load_npz, save_npz
+from scanmap_driver.files import atomic_path, exact_array, load_npz, save_npz
 
 FORMAT_VERSION = 1
 UNKNOWN_SHADE, FREE_SHADE, OCCUPIED_SHADE = 205, 254, 0
@@ -252,5 +252,9 @@ def load_map(path: str | os.PathLike[str]) -> SavedMap:
     grid = HeightGrid.from_state(config, arrays, source=str(path))
     layers = {key.removeprefix("layer_"): value for key, value in arrays.items()
               if key.startswith("layer_")}
-    origin = tuple(map(float, np.asarray(arrays["origin"]).reshape(-1)[:2]))
+    origin = exact_array(np.asarray(arrays["origin"]).reshape(-1)[:2], f"{path}: origin",
+                         np.float64, MapError, allow_nan=True)  # NaN: no layers saved
+    if origin.size != 2:
+        raise MapError(f"{path}: origin must hold x and y, got {origin.size} values")
+    origin = (float(origin[0]), float(origin[1]))
     return SavedMap(grid, layers, origin)
