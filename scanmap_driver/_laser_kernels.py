@@ -87,27 +87,43 @@ def evidence_noise(e: np.ndarray, pad: int, n_pos: int, step: int) -> float:
 
 
 @njit(cache=True, nogil=True)
-def red_statistics(flat: np.ndarray, height: int, width: int,
-                   by_rows: bool) -> tuple[float, float]:
-    """(mean, median over lines of the line's maximum) of the red channel."""
-    n_lines = height if by_rows else width
-    line_max = np.zeros(n_lines, np.uint8)
+def red_statistics(flat: np.ndarray, height: int, width: int, by_rows: bool,
+                   step: int) -> tuple[float, float]:
+    """(mean, median over lines of the line's maximum) of the red channel, on every
+    `step`-th line."""
+    lines = np.arange(0, height if by_rows else width, step)
+    line_max = np.zeros(lines.size, np.uint8)
     total = 0
-    for v in range(height):
-        row = flat[3 * v * width:3 * (v + 1) * width]
-        acc = 0
-        top = np.uint8(0)
-        for u in range(width):
-            r = row[3 * u + 2]
-            acc += np.int32(r)
-            if by_rows:
+    if by_rows:
+        for k in range(lines.size):
+            top = np.uint8(0)
+            for u in range(width):
+                r = flat[3 * (lines[k] * width + u) + 2]
+                total += np.int32(r)
                 top = r if r > top else top
-            else:
-                line_max[u] = r if r > line_max[u] else line_max[u]
-        if by_rows:
-            line_max[v] = top
-        total += acc
-    return total / (height * width), float(np.median(line_max))
+            line_max[k] = top
+    else:
+        for v in range(height):
+            for k in range(lines.size):
+                r = flat[3 * (v * width + lines[k]) + 2]
+                total += np.int32(r)
+                line_max[k] = r if r > line_max[k] else line_max[k]
+    return total / (lines.size * (width if by_rows else height)), float(np.median(line_max))
+
+
+@njit(cache=True, nogil=True)
+def eq1_passes(flat: np.ndarray, height: int, width: int, by_rows: bool, step: int,
+               t: np.uint8, sat: np.uint8) -> float:
+    """Mean number of pixels per line, over every `step`-th line, that pass eq. 1
+    (r > t, g < t, b < t) or whose red is clipped (>= sat): the dark method's evidence."""
+    n_lines = height if by_rows else width
+    count = 0
+    for v in range(0, height, step if by_rows else 1):
+        for u in range(0, width, 1 if by_rows else step):
+            i = 3 * (v * width + u)
+            b, g, r = flat[i], flat[i + 1], flat[i + 2]
+            count += ((r > t) & (g < t) & (b < t)) | (r >= sat)
+    return count / ((n_lines + step - 1) // step)
 
 
 @njit(cache=True, nogil=True)
@@ -693,6 +709,29 @@ def _red_flank(flat: np.ndarray, base: int, pos_stride: int, n_pos: int, x0: int
                 seen += 1
             x += direction
     return False
+
+
+@njit(cache=True, nogil=True)
+def keep_continued(peak: np.ndarray, contrast: np.ndarray, flags: np.ndarray, lo: int, hi: int,
+                   thr: float, max_jump: float) -> None:
+    """Hysteresis along the stripe: a peak of lines lo..hi-1 whose contrast is below `thr`
+    is kept only if a run of peaks on consecutive lines, each within max_jump of the
+    last, links it to a peak at or above `thr`; the others are removed (NONE_FOUND). A
+    stripe fading on a dark or oblique surface stays continuous; weak ridges elsewhere
+    do not pass."""
+    linked = np.zeros(hi - lo, np.bool_)
+    for i in range(lo, hi):
+        linked[i - lo] = math.isfinite(peak[i]) and contrast[i] >= thr
+    for i in range(lo + 1, hi):
+        linked[i - lo] |= (linked[i - 1 - lo] and math.isfinite(peak[i])
+                           and abs(peak[i] - peak[i - 1]) <= max_jump)
+    for i in range(hi - 2, lo - 1, -1):
+        linked[i - lo] |= (linked[i + 1 - lo] and math.isfinite(peak[i])
+                           and abs(peak[i] - peak[i + 1]) <= max_jump)
+    for i in range(lo, hi):
+        if math.isfinite(peak[i]) and not linked[i - lo]:
+            peak[i] = np.nan
+            flags[i] = NONE_FOUND
 
 
 @njit(cache=True, nogil=True)

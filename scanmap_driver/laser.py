@@ -18,8 +18,19 @@ keeping a strong red response that is absent in green and blue. Here, in four pa
 3. Subpixel peak on a fit channel (red by default, luma which keeps full resolution under
    MJPG chroma subsampling, or the evidence) with the chosen estimator; a clipped,
    flat-topped core is located from its flanks (half-height edges, or a Gaussian fit of
-   the unclipped samples).
-4. Lone peaks without neighbours along the stripe are dropped (camera noise).
+   the unclipped samples; a core clipped wider than the fit window, e.g. white over 8 px
+   and red over 19, from the level crossings of its flanks up to 32 px away).
+4. Lines whose ridge is under the threshold but above the noise part of it are kept
+   when a run of peaks on consecutive lines links them to the stripe (hysteresis along
+   the stripe); lone peaks without neighbours along the stripe are dropped.
+
+Method "auto" (the default), per frame: the bright method, unless its threshold is set
+by noise (the noise part, noise_factor x evidence noise, above min_threshold and not
+below the relative part: green and blue noise of a dark, gained-up camera) and eq. 1
+passes at most DARK_PASSES (10) pixels per line, sampled on every 4th line (only the
+laser passes it: a dark room); then the dark method, whose mask removes that noise. A
+lit or red-lit scene, or a clean one, stays with the bright method; the dark method's
+extra pass runs only on noisy frames.
 
 Automatic thresholds follow the frame: the ridge threshold is the largest of a floor, a
 multiple of the evidence noise (mean |difference| of neighbouring samples) and a fraction
@@ -44,6 +55,7 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -66,7 +78,7 @@ class Flag(enum.IntFlag):
 
 ESTIMATORS = ("max", "gauss3", "blais_rioux", "lsq", "com")
 FIT_CHANNELS = ("red", "luma", "evidence")
-METHODS = ("dark", "bright")
+METHODS = ("auto", "dark", "bright")
 AXES = ("columns", "rows")
 
 
@@ -75,7 +87,8 @@ class LaserConfig:
     """Configures laser stripe extraction: how evidence, ridge, threshold and subpixel fit
     find one peak per image line across the stripe.
 
-    method: "dark" (paper eq. 1) or "bright" (red excess with ridge test).
+    method: "auto" (chosen per frame, see the module doc), "dark" (paper eq. 1) or
+        "bright" (red excess with ridge test).
     threshold: minimum ridge response (evidence units, 0-255) or "auto".
     colour_threshold: the `t` of eq. 1 for the dark method, or "auto".
     estimator: subpixel estimator, one of ESTIMATORS.
@@ -96,7 +109,7 @@ class LaserConfig:
     image_size: (width, height) the frames must have, or None to accept any size.
     """
 
-    method: str = "bright"
+    method: str = "auto"
     threshold: float | str = "auto"
     colour_threshold: float | str = "auto"
     estimator: str = "com"
@@ -140,6 +153,8 @@ MIN_WIDTH, DEFAULT_WIDTH, MAX_WIDTH = 1.0, 3.5, 10.0  # stripe FWHM (px)
 WIDTH_SAMPLE_STEP = 8  # the stripe width is measured on every 8th line
 WIDTH_TOLERANCE = 1.5  # a measured width within this factor of DEFAULT_WIDTH keeps it
 WIDTH_SPREAD = 0.25  # largest interquartile range of the lines' widths, relative
+STATISTICS_STEP = 4  # the frame's red statistics and eq. 1 passes on every 4th line
+DARK_PASSES = MAX_WIDTH  # most eq. 1 pixels per line of a dark room: the laser's alone
 
 
 def filter_windows(fwhm: float) -> tuple[int, int, int, int]:
@@ -184,6 +199,7 @@ class StripeResult:
         (`noise_factor * noise`, or the manual threshold); MULTIPLE when two or more.
     flags: `Flag` bits.
     threshold, colour_threshold: the levels used (after "auto").
+    method: the method used, "dark" or "bright" (chosen per frame for "auto").
     """
 
     peak: np.ndarray
@@ -194,6 +210,7 @@ class StripeResult:
     flags: np.ndarray
     threshold: float
     colour_threshold: float
+    method: str
 
     @property
     def found(self) -> np.ndarray:
@@ -204,10 +221,30 @@ class StripeResult:
 def automatic_colour_threshold(flat: np.ndarray, height: int, width: int,
                                by_rows: bool) -> float:
     """Eq. 1's `t`: midway between the scene's mean red and the laser's level (the median
-    of the lines' red maxima). Red objects brighter than the laser pass it too; the ridge
-    test rejects them unless they are as narrow as the stripe."""
-    mean, laser_level = lk.red_statistics(flat, height, width, by_rows)
+    of the lines' red maxima), on every STATISTICS_STEP-th line. Red objects brighter
+    than the laser pass it too; the ridge test rejects them unless they are as narrow as
+    the stripe."""
+    mean, laser_level = lk.red_statistics(flat, height, width, by_rows, STATISTICS_STEP)
     return float(np.clip(0.5 * (mean + laser_level), 40.0, 250.0))
+
+
+def colour_threshold(s: LaserConfig, flat: np.ndarray, height: int, width: int,
+                     by_rows: bool) -> float:
+    """Eq. 1's `t`: the configured level, or `automatic_colour_threshold`."""
+    if s.colour_threshold == "auto":
+        return automatic_colour_threshold(flat, height, width, by_rows)
+    return float(s.colour_threshold)
+
+
+def eq1_keeps_only_the_laser(flat: np.ndarray, height: int, width: int, by_rows: bool,
+                             t: float, saturation: int) -> bool:
+    """True when eq. 1 with threshold `t` passes at most DARK_PASSES pixels per line
+    (sampled on every STATISTICS_STEP-th line): the laser's few and nothing of the scene,
+    a dark room. Not so in a lit or red-lit scene, nor with a core clipped wider than a
+    stripe."""
+    passes = lk.eq1_passes(flat, height, width, by_rows, STATISTICS_STEP,
+                           np.uint8(round(t)), np.uint8(saturation))
+    return passes <= DARK_PASSES
 
 
 def check_frame(image: np.ndarray, image_size: tuple[int, int] | None = None,
@@ -223,6 +260,49 @@ def check_frame(image: np.ndarray, image_size: tuple[int, int] | None = None,
     if image_size is not None and (image.shape[1], image.shape[0]) != tuple(image_size):
         raise ScanError(f"{what}: expected {image_size[0]}x{image_size[1]} pixels (width x "
                         f"height), got {image.shape[1]}x{image.shape[0]}")
+
+
+class _Ridges(NamedTuple):
+    e: np.ndarray  # evidence plane (positions + 2 pad, lines)
+    fwhm: float
+    noise: float
+    noise_thr: float  # the noise part of the ridge threshold
+    thr: float  # the whole ridge threshold
+    unit: int  # the ridge response of a unit evidence step
+    best: np.ndarray
+    best_pos: np.ndarray
+    count: np.ndarray
+
+
+def _ridges(flat: np.ndarray, height: int, width: int, by_rows: bool, dark: bool, t: float,
+            s: LaserConfig, pad: int, lo: int, hi: int) -> _Ridges:
+    """Passes 1 and 2 with one method: evidence, stripe width, noise, ridge and threshold."""
+    n_lines, n_pos = (height, width) if by_rows else (width, height)
+    e = np.empty((n_pos + 2 * pad, n_lines), np.int16)
+    e[:pad] = 0
+    e[pad + n_pos:] = 0
+    lk.evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
+                       np.uint8(s.saturation), pad, e)
+    fwhm = frame_stripe_width(e, pad, n_pos) if s.stripe_width is None else s.stripe_width
+    m, offset, side, _ = filter_windows(fwhm)
+    noise = lk.evidence_noise(e, pad, n_pos, 4)
+    noise_thr = (max(s.min_threshold, s.noise_factor * noise) if s.threshold == "auto"
+                 else float(s.threshold))
+    unit = m * m * side
+    noise_int = max(1, round(noise_thr * unit))
+    small = 2 * 255 * unit < 2**15 and n_pos < 2**15
+    kind = np.int16 if small else np.int32
+    best = np.empty(n_lines, kind)
+    best_pos = np.empty(n_lines, kind)
+    count = np.empty(n_lines, kind)
+    lk.ridge_kernel(e, n_pos, pad, m, offset, side, min(noise_int, 2**15 - 1),
+                    min(noise_int // 2, 2**15 - 1), best, best_pos, count)
+    thr = noise_thr
+    if s.threshold == "auto" and hi > lo:
+        rank = (3 * (hi - lo - 1)) // 4
+        typical = float(np.partition(best[lo:hi], rank)[rank])
+        thr = max(thr, s.relative_threshold * typical / unit)
+    return _Ridges(e, fwhm, noise, noise_thr, thr, unit, best, best_pos, count)
 
 
 def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -> StripeResult:
@@ -242,37 +322,18 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
         min(s.line_range[0], n_lines), min(s.line_range[1], n_lines))
     flat = image.reshape(-1)
     dark = s.method == "dark"
-    t = 0.0
-    if dark:
-        if s.colour_threshold == "auto":
-            t = automatic_colour_threshold(flat, height, width, by_rows)
+    t = colour_threshold(s, flat, height, width, by_rows) if dark else 0.0
+    r = _ridges(flat, height, width, by_rows, dark, t, s, pad, lo, hi)
+    if s.method == "auto" and r.thr <= r.noise_thr and s.noise_factor * r.noise > s.min_threshold:
+        t = colour_threshold(s, flat, height, width, by_rows)
+        dark = eq1_keeps_only_the_laser(flat, height, width, by_rows, t, s.saturation)
+        if dark:
+            r = _ridges(flat, height, width, by_rows, True, t, s, pad, lo, hi)
         else:
-            t = float(s.colour_threshold)
-    e = np.empty((n_pos + 2 * pad, n_lines), np.int16)
-    e[:pad] = 0
-    e[pad + n_pos:] = 0
-    lk.evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
-                    np.uint8(s.saturation), pad, e)
-    fwhm = frame_stripe_width(e, pad, n_pos) if s.stripe_width is None else s.stripe_width
+            t = 0.0
+    e, fwhm, noise, noise_thr, thr, unit, best, best_pos, count = r
     m, offset, side, half = filter_windows(fwhm)
-    noise = lk.evidence_noise(e, pad, n_pos, 4)
-    noise_thr = (max(s.min_threshold, s.noise_factor * noise) if s.threshold == "auto"
-                 else float(s.threshold))
-    unit = m * m * side
-    noise_int = max(1, round(noise_thr * unit))
-    small = 2 * 255 * unit < 2**15 and n_pos < 2**15
-    kind = np.int16 if small else np.int32
-    best = np.empty(n_lines, kind)
-    best_pos = np.empty(n_lines, kind)
-    count = np.empty(n_lines, kind)
-    lk.ridge_kernel(e, n_pos, pad, m, offset, side, min(noise_int, 2**15 - 1),
-                 min(noise_int // 2, 2**15 - 1), best, best_pos, count)
-    thr = noise_thr
-    if s.threshold == "auto" and hi > lo:
-        rank = (3 * (hi - lo - 1)) // 4
-        typical = float(np.partition(best[lo:hi], rank)[rank])
-        thr = max(thr, s.relative_threshold * typical / unit)
-    thr_int = max(1, round(thr * unit))
+    thr_int = max(1, round(noise_thr * unit))  # weaker lines: `keep_continued` below
     peak = np.full(n_lines, np.nan)
     strength = np.full(n_lines, np.nan, np.float32)
     line_width = np.full(n_lines, np.nan, np.float32)
@@ -286,8 +347,11 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
                FIT_CHANNELS.index(s.fit_channel), float(s.saturation),
                max(s.min_threshold, s.noise_factor * noise), peak, strength, line_width,
                contrast, flags)
+    if thr > noise_thr:
+        lk.keep_continued(peak, contrast, flags, lo, hi, thr, 2.0 * fwhm)
     if s.support > 0:
         lk.drop_isolated(peak, flags, lo, hi, s.support, 2.0 * fwhm)
     return StripeResult(peak=peak, strength=strength, width=line_width, contrast=contrast,
                         candidates=np.minimum(count, 255).astype(np.uint8), flags=flags,
-                        threshold=thr, colour_threshold=t)
+                        threshold=thr, colour_threshold=t,
+                        method="dark" if dark else "bright")

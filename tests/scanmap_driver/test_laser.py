@@ -16,7 +16,7 @@ from scanmap_driver import _laser_kernels as lk
 from scanmap_driver import laser
 from scanmap_driver.errors import ScanError
 from scanmap_driver.laser import Flag, LaserConfig, extract_stripe
-from scanmap_driver.sim.synthetic_frames import stripe_frame
+from scanmap_driver.sim.synthetic_frames import saturated_core_frame, stripe_frame
 from tests.conftest import real_data
 
 # ---------------------------------------------------------------- numpy references
@@ -137,15 +137,71 @@ def isolated_reference(peak: np.ndarray, support: int, jump: float) -> np.ndarra
 
 
 @pytest.mark.parametrize("by_rows", [False, True])
-def test_red_statistics_and_colour_threshold_match_numpy(by_rows):
+@pytest.mark.parametrize("step", [1, 4])
+def test_red_statistics_and_colour_threshold_match_numpy(by_rows, step):
     rng = np.random.default_rng(6)
     image = rng.integers(0, 256, (30, 41, 3), dtype=np.uint8)
-    red = image[:, :, 2].astype(float)
-    mean, level = lk.red_statistics(image.reshape(-1), 30, 41, by_rows)
+    lines = image[::step] if by_rows else image[:, ::step]
+    red = lines[:, :, 2].astype(float)
+    mean, level = lk.red_statistics(image.reshape(-1), 30, 41, by_rows, step)
     assert mean == pytest.approx(red.mean())
     assert level == np.median(red.max(axis=1 if by_rows else 0))
-    t = laser.automatic_colour_threshold(image.reshape(-1), 30, 41, by_rows)
-    assert t == pytest.approx(np.clip(0.5 * (mean + level), 40, 250))
+    if step == laser.STATISTICS_STEP:
+        t = laser.automatic_colour_threshold(image.reshape(-1), 30, 41, by_rows)
+        assert t == pytest.approx(np.clip(0.5 * (mean + level), 40, 250))
+
+
+@pytest.mark.parametrize("by_rows", [False, True])
+def test_eq1_passes_match_numpy(by_rows):
+    image = np.random.default_rng(7).integers(0, 256, (30, 41, 3), dtype=np.uint8)
+    for step in (1, 3):
+        lines = image[::step] if by_rows else image[:, ::step]
+        passes = evidence_reference(lines, True, 120, 250) > 0
+        n_lines = lines.shape[0] if by_rows else lines.shape[1]
+        assert lk.eq1_passes(image.reshape(-1), 30, 41, by_rows, step, np.uint8(120),
+                             np.uint8(250)) == pytest.approx(passes.sum() / n_lines)
+
+
+def clipped_centre_reference(vals: np.ndarray, i0: int, sat: float) -> float:
+    """Midpoint of the level crossings, the level halfway between `sat` and the higher
+    foot (each foot: where the descent from the clipped top first rises)."""
+    feet = []
+    for step in (-1, 1):
+        i = i0
+        while 0 <= i + step < len(vals) and (vals[i + step] >= sat
+                                             or vals[i + step] <= vals[i]):
+            i += step
+        feet.append(vals[i])
+    level = 0.5 * (sat + max(feet))
+    above = vals >= level
+    lo = i0 - np.argmin(above[i0::-1])  # first sample below the level, leftwards
+    hi = i0 + np.argmin(above[i0:])
+    left = lo + (level - vals[lo]) / (vals[lo + 1] - vals[lo])
+    right = hi - (level - vals[hi]) / (vals[hi - 1] - vals[hi])
+    return 0.5 * (left + right) - i0
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_clipped_centre_matches_numpy_and_centres_a_wide_clipped_core(seed):
+    rng = np.random.default_rng(seed)
+    centre = 30 + rng.uniform(-0.5, 0.5)
+    x = np.arange(61)
+    profile = 60 + rng.uniform(200, 900) * np.exp(-0.5 * ((x - centre) / rng.uniform(2, 5)) ** 2)
+    vals = np.minimum(profile + rng.normal(0, 1, x.size), 255.0)
+    i0 = 30
+    ours = lk.clipped_centre(vals, x.size, i0, 250.0)
+    assert ours == pytest.approx(clipped_centre_reference(vals, i0, 250.0), abs=1e-12)
+    assert abs(i0 + ours - centre) < 0.1
+
+
+def test_keep_continued_example():
+    peak = np.array([np.nan, 10.0, 11.0, 12.5, 30.0, 31.0, np.nan, 50.0, 51.0, 52.0])
+    contrast = np.array([0, 5, 50, 5, 5, 5, 0, 5, 5, 5], np.float32)
+    flags = np.zeros(10, np.uint8)
+    lk.keep_continued(peak, contrast, flags, 0, 10, 20.0, 2.0)
+    # weak peaks linked to the strong one at line 2 stay; the rest are removed
+    np.testing.assert_array_equal(np.isfinite(peak), [0, 1, 1, 1, 0, 0, 0, 0, 0, 0])
+    assert np.all(flags[[4, 5, 7, 8, 9]] == Flag.NONE_FOUND)
 
 
 def test_drop_isolated_example():
@@ -265,6 +321,46 @@ def test_white_saturated_core_is_found_flagged_and_centred(method):
     assert np.all(result.flags & Flag.SATURATED)
     found, rms, _ = rms_error(result, truth)
     assert found > 0.99 and rms < 0.1
+
+
+def test_default_centres_a_saturated_core_in_a_red_lit_scene():
+    """White core 8 px, red clipped over ~19 px, on a red-lit object: the default
+    settings put at least 95 % of the lines within 1 px of the true centre."""
+    image, truth = saturated_core_frame(np.random.default_rng(1))
+    result = extract_stripe(image)
+    err = np.abs(result.peak - truth)
+    assert result.method == "bright"  # the red-lit scene passes eq. 1: not a dark room
+    assert np.mean(err < 1.0) >= 0.95
+    assert np.sqrt(np.mean(err[err < 1.0] ** 2)) < 0.1
+
+
+def test_automatic_method_finds_a_weak_stripe_in_a_noisy_dark_room():
+    """A weak stripe (40 over sensor noise 6) in a dark room: the bright method's
+    threshold sits above it (green and blue noise), eq. 1's mask removes that noise; the
+    default chooses it by itself and finds what the dark method finds."""
+    image, truth = stripe_frame(np.random.default_rng(24), amplitude=40.0, noise=6.0,
+                                level=10.0)
+    auto = extract_stripe(image)
+    dark = extract_stripe(image, LaserConfig(method="dark"))
+    bright = extract_stripe(image, LaserConfig(method="bright"))
+    assert auto.method == "dark"
+    assert np.array_equal(auto.peak, dark.peak, equal_nan=True)
+    assert bright.found.mean() < 0.5 < 0.9 < auto.found.mean()
+    err = np.abs(auto.peak - truth)[auto.found]
+    assert np.mean(err < 1.0) > 0.98
+
+
+@pytest.mark.parametrize("kwargs", [dict(level=150.0, amplitude=120.0),
+                                    dict(level=120.0, amplitude=150.0, red_objects=6),
+                                    dict(jpeg=85)])
+def test_automatic_method_keeps_bright_where_the_scene_is_clean_or_lit(kwargs):
+    """Where the red excess is not noise-limited the default is the bright method, and
+    gives exactly its result."""
+    image, _ = stripe_frame(np.random.default_rng(25), **kwargs)
+    auto = extract_stripe(image)
+    assert auto.method == "bright"
+    assert np.array_equal(auto.peak, extract_stripe(image, LaserConfig(method="bright")).peak,
+                          equal_nan=True)
 
 
 def test_white_line_without_red_flanks_is_not_laser():
