@@ -20,6 +20,7 @@ from types import TracebackType
 import numpy as np
 
 from scanmap_driver.errors import MapError
+from scanmap_driver.files import publish
 from scanmap_driver.transforms import rotation_to_quaternion, se2_to_pose
 
 MAP, ODOM, BASE_LINK, SCANNER = "map", "odom", "base_link", "scanner"
@@ -234,7 +235,7 @@ class BagFile:
         self.closed = True
         self._writer.close()
         if not self.ros1:
-            (self._folder / f"{self._folder.name}.mcap").replace(self.path)
+            publish(self._folder / f"{self._folder.name}.mcap", self.path)
             shutil.rmtree(self._folder)
 
     def __enter__(self) -> BagFile:
