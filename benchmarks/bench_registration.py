@@ -59,7 +59,7 @@ from scanmap_driver.transforms import invert_pose, se2_to_pose
 REAL = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "real", "carmen")
 EXTRUDE_HEIGHTS = (0.0, 0.1, 0.2, 0.3, 0.4)
 LOGS = ("intel", "aces", "acapulco", "belgioioso", "edmonton", "fhw", "freiburg-101")
-QUICK_SCANS = 100  # scans per real log in the quick run
+QUICK_SCANS = 60  # scans per real log in the quick run (about 60 m each)
 PEER_TIMEOUT = 600.0  # s a peer may take on one sequence
 
 
