@@ -29,6 +29,7 @@ T = TypeVar("T")
 FUZZ = settings(max_examples=60, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
                                        HealthCheck.too_slow, HealthCheck.data_too_large])
+_DELETE = object()  # a mutation that deletes the node
 TIME_LIMIT = 20  # s: a reader slower than this on a small file hangs
 HUGE = 10**12
 
@@ -109,21 +110,32 @@ def mutated_json(draw: st.DrawFn, tree: Any) -> str:
     mutated as bytes."""
     if draw(st.integers(0, 4)) == 0:
         return draw(mutated_bytes(json.dumps(tree).encode())).decode(errors="replace")
-    tree = json.loads(json.dumps(tree))
     path = draw(st.sampled_from(_paths(tree)))
     if not path:
         return json.dumps(draw(st.sampled_from(HOSTILE_JSON)))
-    parent = tree
-    for key in path[:-1]:
-        parent = parent[key]
     action = draw(st.sampled_from(["delete", "replace", "replace", "extra"]))
-    if action == "delete":
+    node = _node(tree, path)
+    if action == "extra" and isinstance(node, dict):
+        return json.dumps(_changed(tree, path, node | {"unexpected_field": 1}))
+    value = _DELETE if action == "delete" else draw(st.sampled_from(HOSTILE_JSON))
+    return json.dumps(_changed(tree, path, value))
+
+
+def _node(tree: Any, path: tuple) -> Any:
+    for key in path:
+        tree = tree[key]
+    return tree
+
+
+def _changed(tree: Any, path: tuple, value: Any) -> Any:
+    """A copy of `tree` with the node at `path` set to `value` (deleted for _DELETE)."""
+    changed = json.loads(json.dumps(tree))
+    parent = _node(changed, path[:-1])
+    if value is _DELETE:
         del parent[path[-1]]
-    elif action == "extra" and isinstance(parent[path[-1]], dict):
-        parent[path[-1]]["unexpected_field"] = 1
     else:
-        parent[path[-1]] = draw(st.sampled_from(HOSTILE_JSON))
-    return json.dumps(tree)
+        parent[path[-1]] = value
+    return changed
 
 
 # -- npz --------------------------------------------------------------------------------
@@ -197,18 +209,8 @@ def every_json_mutation(tree: Any) -> Iterator[tuple[tuple, Any]]:
     for path in _paths(tree)[1:]:
         for value in [_DELETE, *(v for v in HOSTILE_JSON if v != 10**400)]:  # read_json
             # refuses integers beyond float64; in memory they are a caller's bug
-            changed = json.loads(json.dumps(tree))
-            parent = changed
-            for key in path[:-1]:
-                parent = parent[key]
-            if value is _DELETE:
-                del parent[path[-1]]
-            else:
-                parent[path[-1]] = value
-            yield path, changed
+            yield path, _changed(tree, path, value)
 
-
-_DELETE = object()
 
 
 def every_npz_mutation(arrays: dict[str, np.ndarray], keys: list[str] | None = None
@@ -220,3 +222,25 @@ def every_npz_mutation(arrays: dict[str, np.ndarray], keys: list[str] | None = N
         yield key, npz_bytes({k: v for k, v in arrays.items() if k != key})
         for value in _hostile_arrays(np.asarray(arrays[key])):
             yield key, npz_bytes(arrays | {key: value})
+
+
+def sweep_json_reader(original: Any, from_dict: Callable[..., Any],
+                      error: type[ScanmapError], first_of_lists: bool = False) -> None:
+    """Every mutation of `every_json_mutation(original)`: `from_dict(tree, source=...)`
+    refuses it with `error` naming the source, or keeps the written value as it was
+    (what `to_dict` gives back; it leaves out defaults). `first_of_lists`: the first item
+    of each list stands for the others."""
+    for path, tree in every_json_mutation(original):
+        if first_of_lists and any(isinstance(key, int) and key > 0 for key in path[:-1]):
+            continue
+        try:
+            value = from_dict(tree, source="sweep.json")
+        except error as exc:
+            assert "sweep.json" in str(exc)
+            continue
+        written = finite_json(value.to_dict())
+        for key in path[:-1]:
+            written, tree = written[key], tree[key]
+        kept = path[-1] in tree and path[-1] in written
+        if kept and not isinstance(tree[path[-1]], dict):
+            assert written[path[-1]] == tree[path[-1]], path
