@@ -18,8 +18,9 @@ height (default 5 cm) are driven on; a steeper ramp or a higher step is not.
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
 floor is not where it must be), is a DROP_OFF; the drop-off spreads up to `drop_reach`
-through cells without observed floor (the shadow of the rim), so its edge is the last
-floor seen. DROP_OFF is never free and lethal in the costmap.
+through cells without any hit that do not touch floor (the shadow of the rim, not the
+gaps between the laser's samples), and one cell on up to the rim, so its edge is within
+a cell of the last floor seen. DROP_OFF is never free and lethal in the costmap.
 
 No return is not free: a cell without any hit in or around it (3 x 3) where rays passed
 within `floor_probe` (0.3 m) of the floor height - the laser stripe ran over it and
@@ -286,11 +287,13 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                           robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
-    if drop.any():  # through the rim's shadow (unobserved, not a gap in the floor)
-        drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool),
-                                       iterations=max(round(params.drop_reach / res), 1),
-                                       mask=~is_floor & ~stood & ~holes & (layers.nlev == 0)
-                                       ) | drop
+    if drop.any():  # through the rim's shadow: unobserved, not next to floor (a gap in it)
+        shadow = ~ndimage.binary_dilation(is_floor | stood | holes, np.ones((3, 3), bool)) \
+            & (layers.nlev == 0)
+        drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool), mask=shadow,
+                                       iterations=max(round(params.drop_reach / res), 1)) | drop
+        drop |= ndimage.binary_dilation(drop, np.ones((3, 3), bool)) & (layers.nlev == 0) \
+            & ~is_floor & ~stood & ~holes  # and up to the rim
     holes &= ~drop
     # Floor the laser should have lit (rays passed low over it) and did not return from,
     # with no hit in the cells around either (not the foot of a surface a ray ended on)

@@ -446,7 +446,7 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
 
 
 def builtin_scene_names() -> list[str]:
-    """Names of the scenes shipped with scanmap (`corridor`, `office`)."""
+    """Names of the scenes shipped with scanmap (`corridor`, `hazards`, `office`, `people`)."""
     return sorted(p.stem for p in SCENES_DIR.glob("*.json"))
 
 

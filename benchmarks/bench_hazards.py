@@ -1,0 +1,247 @@
+"""What a planar lidar misses, against the simulator's truth: drop-offs, ramps, steps, dark
+and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
+
+    .venv/bin/python -m benchmarks.bench_hazards [--quick]
+
+Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
+over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
+slope). Rows:
+
+* drop-off cells free: true drop-off cells reported FREE or traversable. Strict: all of
+  them; the gate: those more than one cell inside the drop-off (a cell across the edge
+  holds floor hits on its rim half, and the edge is placed within one cell).
+* drop-off edge error: for every DROP_OFF cell next to a FREE cell (the edge a robot
+  drives up to), its distance (cells) to the nearest true drop-off cell; the maximum
+  and the share within one cell.
+* ramp F1: floor (traversable surface) against truth over the observed cells (any hit)
+  of the sloped floor regions, a ramp within max_slope and one steeper.
+* ghost cells: cells within SEE_THROUGH of the robot (where its rays cross the whole
+  band: farther, nothing sees through the space a person left) that a person left at
+  least three scans ago (free in the static truth, covered by nobody since) and the map
+  still calls OBSTACLE, summed over the scans; `left_cells` counts the cells checked.
+* wall erosion and recall: static obstacle cells once OBSTACLE that a later scan calls
+  anything else, and the final share of observed static obstacle cells that are
+  OBSTACLE, with people and without (the same scans of the empty corridor).
+* time per scan: fusing one scan (about 20k points, 5 cm cells) and segmenting the 8 m x
+  8 m window around the robot (median).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import ndimage
+
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.grid.rays import scan_rays
+from scanmap.navigation.floor import (
+    DROP_OFF,
+    FREE,
+    OBSTACLE,
+    FloorConfig,
+    RobotShape,
+    Segmentation,
+    segment,
+)
+from scanmap_driver.scanner_model import reference_scanner
+from scanmap_driver.sim.ideal import IdealScan, ideal_scans
+from scanmap_driver.sim.raster import DROP_OFF as TRUE_DROP_OFF
+from scanmap_driver.sim.raster import FLOOR as TRUE_FLOOR
+from scanmap_driver.sim.raster import OBSTACLE as TRUE_OBSTACLE
+from scanmap_driver.sim.raster import OUTSIDE, TruthRaster, truth_raster
+from scanmap_driver.sim.scene import Scene, builtin_scene
+
+ROBOT = RobotShape()
+PARAMS = FloorConfig()
+MARGIN = 0.5  # m of window around the scene's bounds
+WINDOW = 8.0  # m, side of the window segmented per scan for the timing
+SEE_THROUGH = 2.0  # m from the robot within which a person's former cells are checked
+
+
+@dataclass(frozen=True)
+class Step:
+    """The map after one scan: the grid's window over the scene and its segmentation."""
+
+    index: int
+    ideal: IdealScan
+    seg: Segmentation
+    hits: np.ndarray  # (ny, nx) bool: cells holding any hit
+
+
+def scene_window(scene: Scene) -> tuple[float, float, float, float]:
+    """The scene's bounds grown by MARGIN."""
+    low, high = scene.bounds()
+    return (low[0] - MARGIN, low[1] - MARGIN, high[0] + MARGIN, high[1] + MARGIN)
+
+
+def fuse(grid: HeightGrid, ideal: IdealScan) -> None:
+    """Insert one ideal scan at its true frame poses."""
+    points, origins = scan_rays(ideal.scan, reference_scanner(), ideal.frame_poses)
+    grid.insert(points, origins, float(ideal.scan.time.max()))
+
+
+def mapped(scene: Scene, scans: int | None = None, seed: int = 0,
+           params: FloorConfig = PARAMS) -> Iterator[Step]:
+    """Map the scene scan by scan, segmenting its window after each."""
+    grid = HeightGrid(GridConfig(extent=50.0))
+    bounds = scene_window(scene)
+    for index, ideal in enumerate(ideal_scans(scene, seed=seed, scans=scans)):
+        fuse(grid, ideal)
+        layers = grid.layers(bounds)
+        yield Step(index, ideal, segment(layers, ROBOT, params), layers.nlev > 0)
+
+
+def truth_classes(seg: Segmentation, raster: TruthRaster) -> np.ndarray:
+    """(ny, nx) true class at each segmentation cell's centre (OUTSIDE beyond the raster)."""
+    ny, nx = seg.shape
+    x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
+    y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
+    gx, gy = np.meshgrid(x, y)
+    cells = raster.cell_of(np.column_stack([gx.ravel(), gy.ravel()]))
+    rows, cols = raster.classes.shape
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < rows) & (cells[:, 1] >= 0) & (cells[:, 1] < cols)
+    out = np.full(len(cells), OUTSIDE, np.uint8)
+    out[inside] = raster.classes[cells[inside, 0], cells[inside, 1]]
+    return out.reshape(ny, nx)
+
+
+def traversable(seg: Segmentation) -> np.ndarray:
+    """Cells a planner may drive on: floor and FREE."""
+    return seg.is_floor & (seg.state == FREE)
+
+
+def drop_measures(seg: Segmentation, truth: np.ndarray) -> dict[str, float]:
+    """Drop-off cells reported free (strict and more than a cell inside) and the edge error."""
+    true_drop = truth == TRUE_DROP_OFF
+    inner = ndimage.binary_erosion(true_drop, np.ones((3, 3), bool), border_value=1)
+    free = (seg.state == FREE) | traversable(seg)
+    edge = (seg.state == DROP_OFF) & ndimage.binary_dilation(seg.state == FREE,
+                                                             np.ones((3, 3), bool))
+    distance = ndimage.distance_transform_edt(~true_drop)
+    return {"drop_free_strict": int((free & true_drop).sum()),
+            "drop_free": int((free & inner).sum()),
+            "edge_cells": int(edge.sum()),
+            "edge_error_cells": float(distance[edge].max()) if edge.any() else 0.0,
+            "edge_within_one": float((distance[edge] <= 1.0).mean()) if edge.any() else 1.0,
+            "drop_found": int(((seg.state == DROP_OFF) & true_drop).sum()),
+            "drop_cells": int(true_drop.sum())}
+
+
+def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene) -> float:
+    """F1 of floor against true floor over the observed cells of the sloped regions."""
+    ny, nx = seg.shape
+    x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
+    y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
+    gx, gy = np.meshgrid(x, y)
+    ramps = np.zeros((ny, nx), bool)
+    for region in scene.floor_regions:
+        if any(region.gradient):
+            ramps |= region.contains(gx, gy)
+    cells = ramps & hits
+    predicted, actual = seg.is_floor[cells], truth[cells] == TRUE_FLOOR
+    tp = int((predicted & actual).sum())
+    return 2.0 * tp / max(int(predicted.sum()) + int(actual.sum()), 1)
+
+
+def hazard_run(scans: int | None = None, seed: int = 0) -> dict[str, float]:
+    """The drop-off and ramp measures on the built-in `hazards` scene after its last scan,
+    and the worst count of free drop-off cells over all scans."""
+    scene = builtin_scene("hazards")
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height,
+                          max_slope=PARAMS.max_slope)
+    worst = 0
+    for step in mapped(scene, scans, seed):
+        truth = truth_classes(step.seg, raster)
+        measures = drop_measures(step.seg, truth)
+        worst = max(worst, measures["drop_free"])
+    return {**measures, "drop_free_any_scan": worst,
+            "ramp_f1": ramp_f1(step.seg, truth, step.hits, scene)}
+
+
+def near(step: Step) -> np.ndarray:
+    """(ny, nx) cells whose centres lie within SEE_THROUGH of the robot at the step's scan."""
+    seg = step.seg
+    ny, nx = seg.shape
+    x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution - step.ideal.pose_start[0, 3]
+    y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution - step.ideal.pose_start[1, 3]
+    return np.hypot(*np.meshgrid(x, y)) <= SEE_THROUGH
+
+
+def person_cells(scene: Scene, truth_shape_of: Segmentation, scans: int) -> np.ndarray:
+    """(scans, ny, nx) cells each scan's people cover (obstacles of `at_scan` not static)."""
+    static = truth_classes(truth_shape_of, truth_raster(scene)) == TRUE_OBSTACLE
+    return np.array([(truth_classes(truth_shape_of, truth_raster(scene.at_scan(k)))
+                      == TRUE_OBSTACLE) & ~static for k in range(scans)])
+
+
+def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
+               scene: Scene | None = None) -> dict[str, float]:
+    """Ghost cells and wall erosion on a scene with people (the built-in `people`); wall
+    recall with and without the people."""
+    scene = scene or builtin_scene("people")
+    count = len(scene.scan_poses) if scans is None else scans
+    raster = truth_raster(scene)
+    ghosts, checked, eroded, recall = 0, 0, 0, {}
+    for label, run in (("people", scene), ("empty", replace(scene, people=()))):
+        once = None
+        for step in mapped(run, count, seed):
+            truth = truth_classes(step.seg, raster)
+            walls = truth == TRUE_OBSTACLE
+            obstacle = step.seg.state == OBSTACLE
+            if once is None:
+                once = np.zeros_like(walls)
+                covered = person_cells(scene, step.seg, count) if label == "people" else None
+            if label == "people":
+                eroded += int((once & walls & ~obstacle).sum())
+                left = step.index - linger
+                if left >= 0:
+                    gone = covered[:left + 1].any(axis=0) & ~covered[left + 1:step.index + 1
+                                                                     ].any(axis=0)
+                    gone &= (truth == TRUE_FLOOR) & near(step)
+                    checked += int(gone.sum())
+                    ghosts += int((gone & obstacle).sum())
+            once |= obstacle & walls
+        recall[label] = float((obstacle & walls & step.hits).sum()
+                              / max(int((walls & step.hits).sum()), 1))
+    return {"ghost_cells": ghosts, "left_cells": checked, "wall_cells_eroded": eroded,
+            "wall_recall_people": recall["people"], "wall_recall_empty": recall["empty"]}
+
+
+def time_per_scan(scans: int = 8, seed: int = 0) -> dict[str, float]:
+    """Median seconds to fuse one corridor scan and segment the window around the robot."""
+    grid = HeightGrid(GridConfig(extent=50.0))
+    fuse_t, seg_t, points = [], [], []
+    for ideal in ideal_scans(builtin_scene("corridor"), seed=seed, scans=scans):
+        start = time.perf_counter()
+        fuse(grid, ideal)
+        middle = time.perf_counter()
+        x, y = ideal.pose_start[0, 3], ideal.pose_start[1, 3]
+        half = 0.5 * WINDOW
+        segment(grid.layers((x - half, y - half, x + half, y + half)), ROBOT, PARAMS)
+        seg_t.append(time.perf_counter() - middle)
+        fuse_t.append(middle - start)
+        points.append(len(ideal.scan))
+    fuse_s, seg_s = float(np.median(fuse_t[1:])), float(np.median(seg_t[1:]))
+    return {"points_per_scan": float(np.median(points)), "fuse_ms": 1e3 * fuse_s,
+            "segment_ms": 1e3 * seg_s, "per_scan_ms": 1e3 * (fuse_s + seg_s)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+    import json
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="fewer scans")
+    args = parser.parse_args(argv)
+    results = {"hazards": hazard_run(8 if args.quick else None),
+               "people": people_run(24 if args.quick else None),
+               "timing": time_per_scan(4 if args.quick else 8)}
+    print(json.dumps(results, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
