@@ -17,6 +17,7 @@ import numpy as np
 FLOOR_BGR = (230, 216, 173)  # light blue
 BACKGROUND = 255
 INK = (60, 60, 60)
+LOOP_BGR = (40, 40, 220)  # red: the edges of closed loops
 _TURBO = cv2.applyColorMap(np.arange(256, dtype=np.uint8)[:, None], cv2.COLORMAP_TURBO)[:, 0]
 
 
@@ -31,11 +32,14 @@ def height_colours(height: np.ndarray, step: float, max_height: float) -> np.nda
 
 def overhead_view(points: np.ndarray, floor_height: float | np.ndarray = 0.0, *,
                   resolution: float = 0.01, max_height: float = 1.0, step: float = 0.03,
-                  path: np.ndarray | None = None, max_side: int = 4000) -> np.ndarray:
+                  path: np.ndarray | None = None, loops: np.ndarray | None = None,
+                  max_side: int = 4000) -> np.ndarray:
     """BGR image of (N, 3) map points from above (see the module docstring).
 
     floor_height: of the floor under each point (or one value). path: (K, 2) robot
-    positions. resolution: metres per pixel, coarsened so no side exceeds `max_side`.
+    positions. loops: (L, 2, 2) the two positions each closed loop joins, drawn in red
+    (a line and a ring where it closed). resolution: metres per pixel, coarsened so no
+    side exceeds `max_side`.
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     height = points[:, 2] - np.broadcast_to(np.asarray(floor_height, np.float64), len(points))
@@ -66,6 +70,12 @@ def overhead_view(points: np.ndarray, floor_height: float | np.ndarray = 0.0, *,
         cv2.polylines(image, [pixels.reshape(-1, 1, 2)], False, INK, 1, cv2.LINE_AA)
         for p in pixels:
             cv2.circle(image, tuple(int(v) for v in p), 2, INK, -1, cv2.LINE_AA)
+    for a, b in np.asarray(loops if loops is not None else np.zeros((0, 2, 2)), np.float64):
+        # The two ends of a loop are near each other (the robot came back): a ring marks
+        # where it closed, a line joins the ends.
+        start, end = (tuple(map(int, p)) for p in to_pixel(np.array([a, b])))
+        cv2.line(image, start, end, LOOP_BGR, 1)
+        cv2.circle(image, end, 5, LOOP_BGR, 1)
     _scale_bar(image, resolution)
     _legend(image, step, max_height)
     return image

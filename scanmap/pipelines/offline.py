@@ -51,11 +51,14 @@ OBSTACLE_THRESH = 0.5  # occupancy at which a saved map cell is occupied: every 
 OFFLINE_CONFIG = MapperConfig(update_obstacles=False, keep_points=0.01)
 
 
-def offline_config(config: MapperConfig | None = None) -> MapperConfig:
+def offline_config(config: MapperConfig | None = None, *,
+                   loop_closure: bool = False) -> MapperConfig:
     """`config` (default: the defaults) for a batch job: the obstacle field is built once
-    at the end, not after every scan, and fused points are kept for the overhead view."""
-    if config is None:
-        return OFFLINE_CONFIG
+    at the end, not after every scan, and fused points are kept for the overhead view;
+    `loop_closure` switches loop closure on whatever `config` says."""
+    config = config or OFFLINE_CONFIG
+    if loop_closure:
+        config = replace(config, loop_closure=replace(config.loop_closure, enabled=True))
     return replace(config, update_obstacles=False,
                    keep_points=config.keep_points or OFFLINE_CONFIG.keep_points)
 Progress = Callable[[int, int, MapUpdate], None]
@@ -98,6 +101,8 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
     mapping_cpu = time.process_time() - start_cpu
 
     products = StageClock()
+    with products.stage("close_loops"):
+        mapper.close_loops()  # nothing to do without loop closure
     with products.stage("segment"):
         seg = mapper.segment()
     with products.stage("write"):
@@ -118,6 +123,7 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
                     "workers": scans.workers, "cpus": os.cpu_count()},
         "stages": {name: _stage(name, clocks) for name, clocks in stages.items()},
         "registration": dict(sorted(outcome.items())),
+        "loops": loop_summary(mapper),
         "map": _map_summary(mapper, seg),
         "notes": notes,
         "files": files,
@@ -146,6 +152,8 @@ def report_text(report: dict) -> str:
                  f"{m['process_cpu_seconds']:.1f} CPU s in all threads while mapping")
     lines.append("registration: " + ", ".join(f"{k} {v}"
                                               for k, v in report["registration"].items()))
+    if report["loops"]["enabled"]:
+        lines.append(loop_text(report["loops"]))
     errors = report["errors"]
     if errors.get("available"):
         for key, label, scale, unit in (("range_m", "range", 1e3, "mm"),
@@ -175,7 +183,11 @@ def write_products(mapper: Mapper, seg: Segmentation, out: Path) -> dict[str, st
     points, _ = mapper.kept_points()
     floor = seg.planes[0].height_at(points[:, 0], points[:, 1]) if seg.planes else 0.0
     path = trajectory.positions[:, :2]
-    write_png(out / "overhead.png", overhead_view(points, floor, path=path))
+    closer = mapper.loop_closer
+    loops = None if closer is None else np.array(
+        [[path[loop.candidate], path[loop.query]] for loop in closer.loops
+         if max(loop.candidate, loop.query) < len(path)]).reshape(-1, 2, 2)
+    write_png(out / "overhead.png", overhead_view(points, floor, path=path, loops=loops))
     picture = occupancy_image(occupancy, seg.origin, seg.resolution)
     if len(path):
         pixels = picture.pixel(path)
@@ -227,6 +239,28 @@ def _stage(name: str, clocks: list[StageClock]) -> dict[str, float]:
     return {"count": len(clocks), "total_wall_s": float(wall.sum()),
             "total_cpu_s": float(cpu.sum()), "median_wall_ms": 1e3 * float(np.median(wall)),
             "median_cpu_ms": 1e3 * float(np.median(cpu))}
+
+
+def loop_summary(mapper: Mapper) -> dict:
+    """The loops loop closure closed, how they were found and the largest correction."""
+    closer = mapper.loop_closer
+    if closer is None:
+        return {"enabled": False}
+    corrections = [loop.correction for loop in closer.loops]
+    return {"enabled": True, "closed": len(closer.loops),
+            "found_by": dict(Counter(loop.found_by for loop in closer.loops)),
+            "largest_correction_m": max(corrections, default=0.0),
+            "optimisations": closer.version,
+            "optimise_seconds_median": float(np.median(closer.optimise_seconds))
+            if closer.optimise_seconds else None}
+
+
+def loop_text(loops: dict) -> str:
+    """One line on the loops `loop_summary` reports."""
+    found = ", ".join(f"{n} by {how}" for how, n in loops["found_by"].items())
+    return (f"loop closure: {loops['closed']} loops closed ({found or 'none'}), largest "
+            f"correction {loops['largest_correction_m']:.2f} m, {loops['optimisations']} "
+            "optimisations")
 
 
 def _map_summary(mapper: Mapper, seg: Segmentation) -> dict:

@@ -34,7 +34,13 @@ from scanmap.mapping.state_file import load_state
 from scanmap.navigation.costmap import costmap_to_occupancy, inflate, occupancy_grid
 from scanmap.navigation.floor import Segmentation, segment
 from scanmap.pipelines.carmen_map import LASER_2D
-from scanmap.pipelines.offline import REPORT_FORMAT, offline_config, write_products
+from scanmap.pipelines.offline import (
+    REPORT_FORMAT,
+    loop_summary,
+    loop_text,
+    offline_config,
+    write_products,
+)
 from scanmap.registration import RegistrationConfig
 from scanmap_driver.errors import RecordingError
 from scanmap_driver.files import write_json
@@ -144,26 +150,27 @@ def export_map_folder(map_dir: str | os.PathLike[str], out: str | os.PathLike[st
             "seconds": time.perf_counter() - start}
 
 
-def bag_config(scans: BagScans, config: MapperConfig | None = None) -> MapperConfig:
+def bag_config(scans: BagScans, config: MapperConfig | None = None,
+               loop_closure: bool = False) -> MapperConfig:
     """The offline mapper settings for a bag's scans: `config` if given, else the
     defaults, with the 2-D laser settings (`RegistrationConfig.for_2d_scans`, no floor
-    detection) for LaserScans."""
+    detection) for LaserScans; `loop_closure` switches loop closure on."""
     if config is None and scans.laser_2d:
         config = MapperConfig(registration=RegistrationConfig.for_2d_scans(), floor=LASER_2D)
-    return offline_config(config)
+    return offline_config(config, loop_closure=loop_closure)
 
 
 def map_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str], scan_topic: str, *,
             odom_topic: str | None = None, config: MapperConfig | None = None,
             progress: Callable[[int, int, MapUpdate], None] | None = None,
-            resume: str | os.PathLike[str] | None = None) -> dict:
+            resume: str | os.PathLike[str] | None = None, loop_closure: bool = False) -> dict:
     """Map the scans of a bag's `scan_topic` into the folder `out` (the products of
     `scanmap map`, `write_products`); returns the report (also out/report.json)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start, start_cpu = time.perf_counter(), time.process_time()
     scans = BagScans(bag, scan_topic, odom_topic)
-    config = bag_config(scans, config)
+    config = bag_config(scans, config, loop_closure)
     mapper = Mapper.load(resume, offline=True) if resume else Mapper(config=config,
                                                                      offline=True)
     outcome: Counter[str] = Counter()
@@ -175,6 +182,7 @@ def map_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str], scan_topic
                         "degenerate": int(update.registration.degenerate)})
         if progress:
             progress(done, scans.count, update)
+    mapper.close_loops()  # nothing to do without loop closure
     wall, cpu = time.perf_counter() - start, time.process_time() - start_cpu
     files = write_products(mapper, map_segmentation(mapper.grid, mapper.config), out)
     recorded = stamps[-1] - stamps[0] if len(stamps) > 1 else None
@@ -189,6 +197,7 @@ def map_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str], scan_topic
                     "cpus": os.cpu_count()},
         "stages": {},
         "registration": dict(sorted(outcome.items())),
+        "loops": loop_summary(mapper),
         "notes": [],
         "files": files,
         "errors": {"available": False, "reason": f"no ground truth in a bag ({scans.path})"},
@@ -202,4 +211,5 @@ def bag_report_text(report: dict) -> str:
     m = report["mapping"]
     return (f"{report['input']['scans']} scans of {report['input']['topic']} mapped in "
             f"{m['wall_seconds']:.2f} s ({1e3 * m['seconds_per_scan']:.0f} ms per scan)\n"
-            "registration: " + ", ".join(f"{k} {v}" for k, v in report["registration"].items()))
+            "registration: " + ", ".join(f"{k} {v}" for k, v in report["registration"].items())
+            + (f"\n{loop_text(report['loops'])}" if report["loops"]["enabled"] else ""))

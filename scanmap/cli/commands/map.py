@@ -34,6 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="threads assembling scans from video (default 2)")
     parser.add_argument("--resume", type=Path, default=None, metavar="MAP",
                         help="continue this map.npz (a previous run's) with INPUT's scans")
+    parser.add_argument("--loop-closure", action="store_true",
+                        help="close loops (a pose graph behind the registration; the same "
+                             "as loop_closure.enabled = true in --config)")
     parser.add_argument("--config", type=Path, default=None, metavar="FILE",
                         help="mapper configuration (TOML; `scanmap config --defaults` "
                              "prints every key)")
@@ -48,7 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _map(args: argparse.Namespace) -> int:
     model = ScannerModel.load(args.scanner) if args.scanner else None
     loaded = MapperConfig.load(args.config) if args.config else None
-    config = offline_config(loaded)
+    config = offline_config(loaded, loop_closure=args.loop_closure)
     with tqdm(unit="scan", desc="mapping", dynamic_ncols=True) as bar:
 
         def progress(done: int, total: int, update: MapUpdate) -> None:
@@ -59,7 +62,8 @@ def _map(args: argparse.Namespace) -> int:
 
         if is_bag(args.input):
             report = map_bag(args.input, args.out, args.scan_topic, odom_topic=args.odom_topic,
-                             config=loaded, progress=progress, resume=args.resume)
+                             config=loaded, progress=progress, resume=args.resume,
+                             loop_closure=args.loop_closure)
         else:
             report = map_to_folder(args.input, args.out, model=model, workers=args.workers,
                                    config=config, progress=progress, resume=args.resume)
