@@ -96,6 +96,7 @@ class Nearest:
     clearance: float
     age: float
     status: QueryStatus
+    stamp: float = math.nan  # the data time of the snapshot answered from (NaN: none)
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,6 +109,7 @@ class PolarScan:
     kinds: np.ndarray
     age: float
     status: QueryStatus
+    stamp: float = math.nan  # the data time of the snapshot answered from (NaN: none)
 
 
 @dataclass(frozen=True)
@@ -118,6 +120,7 @@ class Clearance:
     margin: float
     age: float
     status: QueryStatus
+    stamp: float = math.nan  # the data time of the snapshot answered from (NaN: none)
 
 
 @dataclass(frozen=True, eq=False)
@@ -241,7 +244,8 @@ class ObstacleMap:
         clearance, kind, d, px, py = snap.query(x, y)
         bearing = math.atan2(py - y, px - x) if 0.0 < d < math.inf else math.nan
         return Nearest(d, bearing, (px, py), clearance, age,
-                       QueryStatus.OK if kind in (OBSTACLE, DROP_OFF) else QueryStatus.UNKNOWN)
+                       QueryStatus.OK if kind in (OBSTACLE, DROP_OFF) else QueryStatus.UNKNOWN,
+                       snap.stamp)
 
     def _distances(self, points: np.ndarray, unknown_blocks: bool) -> np.ndarray:
         xy = np.asarray(points, dtype=np.float64)
@@ -287,7 +291,8 @@ class ObstacleMap:
             nk.polar_kernel(x, y, math.remainder(yaw, 2 * math.pi), max_range, s.state,
                             snap.boxes, snap.geometry, ranges, kinds)
             status = QueryStatus.UNKNOWN if (kinds == UNKNOWN).any() else QueryStatus.OK
-        return PolarScan(angles, ranges, kinds, age, status)
+        return PolarScan(angles, ranges, kinds, age, status,
+                         math.nan if snap is None else snap.stamp)
 
     def clearance(self, pose: tuple[float, float, float],
                   footprint: float | np.ndarray | None = None) -> Clearance:
@@ -318,4 +323,4 @@ class ObstacleMap:
                                              snap.geometry)
         return Clearance(not margin > 0.0, float(margin), age,
                          QueryStatus.OK if kind in (OBSTACLE, DROP_OFF, FREE)
-                         else QueryStatus.UNKNOWN)
+                         else QueryStatus.UNKNOWN, snap.stamp)
