@@ -176,11 +176,9 @@ def frame_stripe_width(e: np.ndarray, pad: int, n_pos: int) -> float:
     such widths, and MJPG's halved chroma widens the red excess a little, so only a stripe
     that clearly misfits resizes it. The stripe crosses most lines: the median is its
     width."""
-    widths = lk.evidence_widths(e, pad, n_pos, WIDTH_SAMPLE_STEP)
-    widths = widths[np.isfinite(widths)]
-    if widths.size == 0:
+    q25, measured, q75 = lk.quartiles(lk.evidence_widths(e, pad, n_pos, WIDTH_SAMPLE_STEP))
+    if not math.isfinite(measured):
         return DEFAULT_WIDTH
-    q25, measured, q75 = np.percentile(widths, [25, 50, 75])
     if (q75 - q25 > WIDTH_SPREAD * measured
             or DEFAULT_WIDTH / WIDTH_TOLERANCE <= measured <= DEFAULT_WIDTH * WIDTH_TOLERANCE):
         return DEFAULT_WIDTH

@@ -162,6 +162,43 @@ def test_eq1_passes_match_numpy(by_rows):
                              np.uint8(250)) == pytest.approx(passes.sum() / n_lines)
 
 
+def evidence_widths_reference(e: np.ndarray, pad: int, n_pos: int, step: int) -> np.ndarray:
+    """As documented: half-way between each sampled line's maximum and mean, the
+    interpolated width of the run around the (first) maximum."""
+    out = []
+    for u in range(0, e.shape[1], step):
+        line = e[pad:pad + n_pos, u].astype(float)
+        top = int(np.argmax(line))
+        level = 0.5 * (line[top] + line.mean())
+        if not line[top] > level:
+            out.append(np.nan)
+            continue
+        a, b = top, top
+        while a > 0 and line[a - 1] > level:
+            a -= 1
+        while b < n_pos - 1 and line[b + 1] > level:
+            b += 1
+        lo = a - (line[a] - level) / (line[a] - line[a - 1]) if a > 0 else a
+        hi = b + (line[b] - level) / (line[b] - line[b + 1]) if b < n_pos - 1 else b
+        out.append(hi - lo)
+    return np.array(out)
+
+
+def test_evidence_widths_and_quartiles_match_numpy():
+    image, _ = stripe_frame(np.random.default_rng(8), height=120, width=90, sigma=2.0)
+    pad = 6
+    e = np.zeros((120 + 2 * pad, 90), np.int16)
+    lk.evidence_kernel(image.reshape(-1), 120, 90, False, False, np.uint8(0), np.uint8(250),
+                       pad, e)
+    ours = lk.evidence_widths(e, pad, 120, 4)
+    np.testing.assert_allclose(ours, evidence_widths_reference(e, pad, 120, 4), atol=1e-12)
+    assert np.median(ours) == pytest.approx(2.3548 * 2.0, rel=0.1)  # the FWHM of sigma 2
+    for values in (ours, np.array([3.0, np.nan, 1.0]), np.array([5.0]), np.array([np.nan])):
+        finite = values[np.isfinite(values)]
+        expected = np.percentile(finite, [25, 50, 75]) if finite.size else [np.nan] * 3
+        np.testing.assert_allclose(lk.quartiles(values), expected, atol=1e-12)
+
+
 def clipped_centre_reference(vals: np.ndarray, i0: int, sat: float) -> float:
     """Midpoint of the level crossings, the level halfway between `sat` and the higher
     foot (each foot: where the descent from the clipped top first rises)."""
