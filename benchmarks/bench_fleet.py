@@ -1,7 +1,7 @@
 """The fleet (issue 20): many recordings reprocessed on a Dask LocalCluster against the
 serial jobs, with the figures docs/fleet.md plans from.
 
-Simulates office recordings (4 of 3 scans; 2 of 2 in --quick), runs `process_recording`
+Simulates office recordings (4 of 3 scans; 2 of 1 in --quick), runs `process_recording`
 and `map_to_folder` on each in this process, then `run_fleet` on a LocalCluster of 1 and
 2 one-thread worker processes (after warm-up jobs that load the kernels in the
 workers). Rows give the wall time, the speed-up over serial, the efficiency (speed-up per
@@ -85,7 +85,7 @@ def run(quick: bool = False) -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         scratch = Path(folder)
-        recordings = _recordings(scratch, *((2, 2) if quick else (4, 3)))
+        recordings = _recordings(scratch, *((2, 1) if quick else (4, 3)))
         frames = sum(_frames(path) for path in recordings)
         video = sum(p.stat().st_size for path in recordings for p in path.glob("*.avi"))
         serial = {job: _serial(job, recordings, scratch / f"serial-{job}") for job in SERIAL}

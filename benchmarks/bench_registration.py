@@ -60,6 +60,7 @@ REAL = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "re
 EXTRUDE_HEIGHTS = (0.0, 0.1, 0.2, 0.3, 0.4)
 LOGS = ("intel", "aces", "acapulco", "belgioioso", "edmonton", "fhw", "freiburg-101")
 QUICK_SCANS = 60  # scans per real log in the quick run (about 60 m each)
+QUICK_LOGS = ("intel", "aces", "acapulco")  # the quick run: 180 and 181 beams, < 3 min
 PEER_TIMEOUT = 600.0  # s a peer may take on one sequence
 
 
@@ -467,7 +468,7 @@ def run(quick: bool = False, only: str | None = None) -> list[dict]:
     builders = {"sim-corridor": partial(simulated, "corridor", 20 if quick else None),
                 "sim-office": partial(simulated, "office", 10 if quick else None)}
     builders |= {f"real-{name}": partial(carmen, name, QUICK_SCANS if quick else None)
-                 for name in LOGS}
+                 for name in (QUICK_LOGS if quick else LOGS)}
     if not quick:
         builders |= {"rendered-office": partial(rendered, "office", 6),
                      "rendered-corridor": partial(rendered, "corridor", 8)}
