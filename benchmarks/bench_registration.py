@@ -3,7 +3,7 @@
 Sequences: the simulator's corridor and office (ideal scans; in the full run also scans
 processed from rendered frames), and the seven real CARMEN logs (`LOGS`: raw ODOM as the
 prior, the corrected FLASER poses as reference; the quick run takes the first
-`QUICK_SCANS` scans of each). Ours has one configuration for every log.
+`QUICK_SCANS` scans of each of `QUICK_LOGS`). Ours has one configuration for every log.
 
 Methods, all single-threaded, all started from the same first pose:
 * ours: `ScanOdometry` (scan-to-local-map point-to-plane ICP, planar, odometry prior).
