@@ -13,6 +13,7 @@ import json
 import math
 import os
 import tempfile
+import tokenize
 import zipfile
 import zlib
 from collections.abc import Iterator
@@ -116,7 +117,8 @@ def load_npz(path: str | os.PathLike[str], error: type[ScanmapError],
     except FileNotFoundError:
         raise error(f"{path}: file not found") from None
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error,
-            NotImplementedError, MemoryError) as exc:
+            NotImplementedError, MemoryError, SyntaxError, tokenize.TokenError) as exc:
+        # SyntaxError, TokenError: numpy parses each array's header as Python literals
         raise error(f"{path}: not a readable .npz file ({exc})") from None
     missing = [key for key in required if key not in arrays]
     if missing:
