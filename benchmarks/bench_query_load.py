@@ -73,9 +73,12 @@ def office_scans(count: int) -> list[Scan]:
     return [ideal.scan for ideal in ideal_scans(builtin_scene("office"), seed=4, scans=count)]
 
 
-def poll_while_mapping(scans: Sequence[Scan], threads: int = 3, rate: float = 1000.0
-                       ) -> LoadRun:
-    """Map `scans` in the mapper's thread while `threads` controllers poll at `rate` Hz."""
+def poll_while_mapping(scans: Sequence[Scan], threads: int = 3, rate: float = 1000.0,
+                       scan_interval: float = 0.5) -> LoadRun:
+    """Map `scans` in the mapper's thread while `threads` controllers poll at `rate` Hz.
+
+    Scans arrive at most one per `scan_interval` seconds (the scanner takes about 2 s a
+    scan), so that every snapshot is polled a while however fast this machine maps."""
     mapper = Mapper(reference_scanner(), replace(MapperConfig(), max_age=2 * CLOCK),
                     clock=lambda: CLOCK)
     published: dict[float, ObstacleSnapshot] = {}
@@ -112,7 +115,9 @@ def poll_while_mapping(scans: Sequence[Scan], threads: int = 3, rate: float = 10
         poller.start()
     mapping = mapper.start()
     for scan in scans:
+        due = time.perf_counter() + scan_interval
         mapping.submit(scan, timeout=300)
+        time.sleep(max(due - time.perf_counter(), 0.0))
     mapping.close()
     finished = mapping.join(timeout=600)
     done.set()
