@@ -23,7 +23,7 @@ gaps between the laser's samples), and one cell on up to the rim, so its edge is
 a cell of the last floor seen. DROP_OFF is never free and lethal in the costmap.
 
 No return is not free: a cell without any hit in or around it (3 x 3) where rays passed
-within `floor_probe` (0.3 m) of the floor height - the laser stripe ran over it and
+within `floor_probe` (0.1 m) of the floor height - the laser stripe ran over it and
 nothing came back: black carpet, a hole nothing returned from - is never FREE, nor is a
 cell too steep to be floor. The exceptions are known floor: the robot's footprint at the poses it
 scanned from (it stood there; FREE unless something occupies its band), the assumed
@@ -134,7 +134,7 @@ class FloorConfig:
     slope_reach: float = 0.1
     drop_reach: float = 0.5
     max_hole: float = 0.3
-    floor_probe: float = 0.3
+    floor_probe: float = 0.1
 
 
 @dataclass(frozen=True)
