@@ -229,6 +229,36 @@ def time_per_scan(scans: int = 8, seed: int = 0) -> dict[str, float]:
             "segment_ms": 1e3 * seg_s, "per_scan_ms": 1e3 * (fuse_s + seg_s)}
 
 
+def measure(quick: bool) -> dict[str, dict[str, float]]:
+    """Every measure of the module docstring (fewer scans with `quick`)."""
+    return {"hazards": hazard_run(8 if quick else None),
+            "people": people_run(24 if quick else None),
+            "timing": time_per_scan(4 if quick else 8)}
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Benchmark rows (see the module docstring) for `python -m benchmarks`."""
+    m = measure(quick)
+    h, people, timing = m["hazards"], m["people"], m["timing"]
+    per_scan = 1e-3 * timing["per_scan_ms"]
+    settings = "ideal scans at true poses, 5 cm cells, default robot"
+    return [
+        {"stage": "hazards", "method": "drop-off cells free or traversable (gate)",
+         "settings": f"built-in hazards scene, {settings}", "median_s": per_scan,
+         "error": h["drop_free"], "error_unit": "cells (goal 0)", **h, "peers": {}},
+        {"stage": "hazards", "method": "ramp floor F1", "settings": "7 and 20 deg ramps",
+         "median_s": None, "error": 1.0 - h["ramp_f1"], "error_unit": "1 - F1 (goal 0.03)",
+         "peers": {}},
+        {"stage": "hazards", "method": "ghost cells three scans after a person left",
+         "settings": f"built-in people scene, {settings}", "median_s": None,
+         "error": people["ghost_cells"], "error_unit": f"cells of {people['left_cells']} "
+         "checked (goal 0)", **people, "peers": {}},
+        {"stage": "hazards", "method": "fuse + segment one scan",
+         "settings": f"corridor, {timing['points_per_scan']:.0f} points, 8 m window",
+         "median_s": per_scan, "error": None, **timing, "peers": {}},
+    ]
+
+
 def main(argv: list[str] | None = None) -> int:
     import argparse
     import json
@@ -236,10 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer scans")
     args = parser.parse_args(argv)
-    results = {"hazards": hazard_run(8 if args.quick else None),
-               "people": people_run(24 if args.quick else None),
-               "timing": time_per_scan(4 if args.quick else 8)}
-    print(json.dumps(results, indent=1))
+    print(json.dumps(measure(args.quick), indent=1))
     return 0
 
 
