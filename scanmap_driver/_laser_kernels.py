@@ -351,11 +351,9 @@ def offset_com(g: np.ndarray, n: int, i0: int, half: int) -> float:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _half_crossings(g: np.ndarray, n: int, i0: int) -> tuple[float, float]:
-    """Positions where g falls to half of g[i0] on each side (NaN if a side is cut)."""
-    level = 0.5 * g[i0]
-    if not level > 0.0:
-        return np.nan, np.nan
+def _crossings(g: np.ndarray, n: int, i0: int, level: float) -> tuple[float, float]:
+    """Interpolated positions where g, walking out from i0, first falls below `level` on
+    each side (NaN if a side reaches the end of the profile)."""
     i = i0
     while i > 0 and g[i - 1] >= level:
         i -= 1
@@ -367,6 +365,15 @@ def _half_crossings(g: np.ndarray, n: int, i0: int) -> tuple[float, float]:
     lo = i - (g[i] - level) / (g[i] - g[i - 1])
     hi = j + (g[j] - level) / (g[j] - g[j + 1])
     return lo, hi
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _half_crossings(g: np.ndarray, n: int, i0: int) -> tuple[float, float]:
+    """Positions where g falls to half of g[i0] on each side (NaN if a side is cut)."""
+    level = 0.5 * g[i0]
+    if not level > 0.0:
+        return np.nan, np.nan
+    return _crossings(g, n, i0, level)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -406,16 +413,7 @@ def clipped_centre(vals: np.ndarray, n: int, i0: int, sat: float) -> float:
     level = 0.5 * (sat + max(left, right))
     if not level < sat:
         return np.nan
-    i = i0
-    while i > 0 and vals[i - 1] >= level:
-        i -= 1
-    j = i0
-    while j < n - 1 and vals[j + 1] >= level:
-        j += 1
-    if i == 0 or j == n - 1:
-        return np.nan
-    lo = i - (vals[i] - level) / (vals[i] - vals[i - 1])
-    hi = j + (vals[j] - level) / (vals[j] - vals[j + 1])
+    lo, hi = _crossings(vals, n, i0, level)
     return 0.5 * (lo + hi) - i0
 
 
