@@ -43,6 +43,16 @@ def recording_scans(recording: Recording, model: ScannerModel | None = None
         yield scan, summary, error
 
 
+def save_processed_scan(scan: Scan, summary: ScanSummary, error: str | None, out: Path,
+                        ply: bool = True) -> dict:
+    """Write `scan_NNNN.npz` (and `.ply`) into `out`; returns its summary.json entry."""
+    stem = scan_name(scan.index)
+    scan.save(out / f"{stem}.npz")
+    if ply:
+        scan.save_ply(out / f"{stem}.ply")
+    return summary.to_dict() | {"file": f"{stem}.npz", "error": error}
+
+
 def process_recording(path: str | os.PathLike[str], out: str | os.PathLike[str], *,
                       model: ScannerModel | None = None, ply: bool = True,
                       progress: Callable[[str], None] | None = None) -> list[dict]:
@@ -52,12 +62,7 @@ def process_recording(path: str | os.PathLike[str], out: str | os.PathLike[str],
     out.mkdir(parents=True, exist_ok=True)
     summaries = []
     for scan, summary, error in recording_scans(recording, model):
-        stem = scan_name(scan.index)
-        scan.save(out / f"{stem}.npz")
-        if ply:
-            scan.save_ply(out / f"{stem}.ply")
-        entry = summary.to_dict() | {"file": f"{stem}.npz", "error": error}
-        summaries.append(entry)
+        summaries.append(save_processed_scan(scan, summary, error, out, ply))
         write_json(out / "summary.json", {"recording": str(path), "scans": summaries})
         if progress:
             progress(f"scan {scan.index}: {summary.frames} frames, {summary.points} points, "

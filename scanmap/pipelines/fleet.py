@@ -39,8 +39,8 @@ from scanmap.mapping.config import MapperConfig
 from scanmap.pipelines.offline import map_to_folder, offline_config
 from scanmap_driver.errors import RecordingError, ScanmapError
 from scanmap_driver.files import read_json, write_json
-from scanmap_driver.processing import recording_scans
-from scanmap_driver.recording import Recording, scan_name
+from scanmap_driver.processing import recording_scans, save_processed_scan
+from scanmap_driver.recording import Recording
 from scanmap_driver.scanner_model import ScannerModel
 
 if TYPE_CHECKING:
@@ -189,14 +189,9 @@ def process_chunk(job: FleetJob, indices: tuple[int, ...]) -> list[dict]:
     does; returns their summary entries in order."""
     recording = Recording.open(job.source)
     chunk = replace(recording, scans=tuple(recording.scan(i) for i in indices))
-    entries = []
-    for scan, summary, error in recording_scans(chunk, job.model()):
-        stem = scan_name(scan.index)
-        scan.save(job.staging / f"{stem}.npz")
-        if job.options.get("ply", True):
-            scan.save_ply(job.staging / f"{stem}.ply")
-        entries.append(summary.to_dict() | {"file": f"{stem}.npz", "error": error})
-    return entries
+    ply = job.options.get("ply", True)
+    return [save_processed_scan(scan, summary, error, job.staging, ply)
+            for scan, summary, error in recording_scans(chunk, job.model())]
 
 
 def finish_process(job: FleetJob, *chunks: list[dict]) -> dict:
