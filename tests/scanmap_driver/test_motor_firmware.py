@@ -284,8 +284,10 @@ def test_sketch_drives_the_h_bridge(sketch):
         assert wait_until(lambda: sketch.pins()[IN1] == 0 and sketch.pins()[IN2] == 1)
         assert wait_until(lambda: sketch.pins().get(PWM) == 127)
         motor.brake()  # short brake: both inputs high, enable on
-        assert wait_until(lambda: sketch.pins()[IN1] == 1 and sketch.pins()[IN2] == 1)
-        assert sketch.pins()[PWM] == 255
+        # the three pins change one after another: wait for all of them, or a poll
+        # between the writes sees the inputs braked and the enable not yet raised
+        assert wait_until(lambda: (sketch.pins()[IN1], sketch.pins()[IN2],
+                                   sketch.pins().get(PWM)) == (1, 1, 255))
         motor.stop()  # coast: all off
         assert wait_until(lambda: (sketch.pins()[IN1], sketch.pins()[IN2],
                                    sketch.pins()[PWM]) == (0, 0, 0))
