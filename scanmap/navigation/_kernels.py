@@ -617,26 +617,50 @@ def polar_kernel(qx, qy, yaw, max_range, state, boxes, geo, ranges, kinds):
     x_hi = min(int((qx + max_range + half_diag - ox) / res) + 1, nx)
     y_lo = max(int((qy - max_range - half_diag - oy) / res), 0)
     y_hi = min(int((qy + max_range + half_diag - oy) / res) + 1, ny)
-    for y in range(y_lo, y_hi):
-        for x in range(x_lo, x_hi):
-            if state[y, x] == FREE:
-                continue
-            b = (y + 1) * (nx + 2) + x + 1
-            r = math.hypot(_clamp(qx, boxes[b, 0], boxes[b, 2]) - qx,
-                           _clamp(qy, boxes[b, 1], boxes[b, 3]) - qy)
-            if r > max_range:
-                continue
-            cx, cy = ox + (x + 0.5) * res - qx, oy + (y + 0.5) * res - qy
-            rc = math.hypot(cx, cy)
-            spread = math.pi if rc <= half_diag else math.asin(half_diag / rc)
-            centre = math.atan2(cy, cx) - yaw + math.pi
-            b0 = math.floor((centre - spread) / width)
-            b1 = math.floor((centre + spread) / width)
-            for b in range(b0, b1 + 1):
-                bb = b % bins
-                if r < ranges[bb]:
-                    ranges[bb] = r
-                    kinds[bb] = state[y, x]
+    # Square rings of cells around the query's cell, nearest first: a cell of ring k lies
+    # at least (k - 1 - CELL_SLACK) cells away, so once every bin holds a nearer range
+    # the rings beyond cannot change the answer.
+    cx = min(max(int((qx - ox) / res), 0), nx - 1)
+    cy = min(max(int((qy - oy) / res), 0), ny - 1)
+    rings = max(cx - x_lo, x_hi - 1 - cx, cy - y_lo, y_hi - 1 - cy)
+    for k in range(rings + 1):
+        if k >= 2 and ranges.max() < (k - 1 - CELL_SLACK) * res:
+            break
+        for y in range(max(cy - k, y_lo), min(cy + k + 1, y_hi)):
+            on_edge_row = y == cy - k or y == cy + k
+            step = 1 if on_edge_row else max(2 * k, 1)
+            for x in range(cx - k, cx + k + 1, step):
+                if x_lo <= x < x_hi:
+                    _spread_cell(x, y, qx, qy, yaw, max_range, state, boxes, geo, ranges,
+                                 kinds)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _spread_cell(x, y, qx, qy, yaw, max_range, state, boxes, geo, ranges, kinds):
+    """Lower the ranges of the bins cell (y, x) subtends to its distance, if it is blocked
+    and within max_range (the inner step of `polar_kernel`)."""
+    if state[y, x] == FREE:
+        return
+    ox, oy, res, nx = geo[0], geo[1], geo[2], int(geo[3])
+    b = (y + 1) * (nx + 2) + x + 1
+    r = math.hypot(_clamp(qx, boxes[b, 0], boxes[b, 2]) - qx,
+                   _clamp(qy, boxes[b, 1], boxes[b, 3]) - qy)
+    if r > max_range:
+        return
+    bins = ranges.shape[0]
+    width = 2.0 * math.pi / bins
+    half_diag = res * math.sqrt(0.5)
+    cx, cy = ox + (x + 0.5) * res - qx, oy + (y + 0.5) * res - qy
+    rc = math.hypot(cx, cy)
+    spread = math.pi if rc <= half_diag else math.asin(half_diag / rc)
+    centre = math.atan2(cy, cx) - yaw + math.pi
+    b0 = math.floor((centre - spread) / width)
+    b1 = math.floor((centre + spread) / width)
+    for b in range(b0, b1 + 1):
+        bb = b % bins
+        if r < ranges[bb]:
+            ranges[bb] = r
+            kinds[bb] = state[y, x]
 
 
 @njit(cache=True, nogil=True)
