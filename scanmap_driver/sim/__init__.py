@@ -30,28 +30,61 @@ Public API:
   `truth_path(recording, index)`: where a scan's truth lives.
 """
 
-from .camera_effects import SimCameraConfig
-from .ideal import IdealScan, ideal_scans
-from .plan import ScanPlan, plan_scans
-from .raster import DROP_OFF as RASTER_DROP_OFF
-from .raster import FLOOR as RASTER_FLOOR
-from .raster import OBSTACLE as RASTER_OBSTACLE
-from .raster import OUTSIDE as RASTER_OUTSIDE
-from .raster import TruthRaster, truth_raster
-from .render import FrameTruth, LaserAppearance, RenderedFrame, Renderer
-from .scene import (
-    Box,
-    Cylinder,
-    FloorRegion,
-    Person,
-    Scene,
-    builtin_scene,
-    builtin_scene_names,
-    load_scene,
-    resolve_scene,
-)
-from .simulate import simulate_ideal, simulate_recording
-from .truth import ScanTruth, truth_path
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .camera_effects import SimCameraConfig
+    from .ideal import IdealScan, ideal_scans
+    from .plan import ScanPlan, plan_scans
+    from .raster import DROP_OFF as RASTER_DROP_OFF
+    from .raster import FLOOR as RASTER_FLOOR
+    from .raster import OBSTACLE as RASTER_OBSTACLE
+    from .raster import OUTSIDE as RASTER_OUTSIDE
+    from .raster import TruthRaster, truth_raster
+    from .render import FrameTruth, LaserAppearance, RenderedFrame, Renderer
+    from .scene import (
+        Box,
+        Cylinder,
+        FloorRegion,
+        Person,
+        Scene,
+        builtin_scene,
+        builtin_scene_names,
+        load_scene,
+        resolve_scene,
+    )
+    from .simulate import simulate_ideal, simulate_recording
+    from .truth import ScanTruth, truth_path
+
+# Each public name is imported from its module on first use: reading ground truth or a
+# scene must not load the ray caster (Open3D, about 1.5 s) that rendering needs.
+_WHERE = {
+    "SimCameraConfig": ("camera_effects", "SimCameraConfig"),
+    "IdealScan": ("ideal", "IdealScan"), "ideal_scans": ("ideal", "ideal_scans"),
+    "ScanPlan": ("plan", "ScanPlan"), "plan_scans": ("plan", "plan_scans"),
+    "RASTER_DROP_OFF": ("raster", "DROP_OFF"), "RASTER_FLOOR": ("raster", "FLOOR"),
+    "RASTER_OBSTACLE": ("raster", "OBSTACLE"), "RASTER_OUTSIDE": ("raster", "OUTSIDE"),
+    "TruthRaster": ("raster", "TruthRaster"), "truth_raster": ("raster", "truth_raster"),
+    "FrameTruth": ("render", "FrameTruth"), "LaserAppearance": ("render", "LaserAppearance"),
+    "RenderedFrame": ("render", "RenderedFrame"), "Renderer": ("render", "Renderer"),
+    **{name: ("scene", name) for name in (
+        "Box", "Cylinder", "FloorRegion", "Person", "Scene", "builtin_scene",
+        "builtin_scene_names", "load_scene", "resolve_scene")},
+    "simulate_ideal": ("simulate", "simulate_ideal"),
+    "simulate_recording": ("simulate", "simulate_recording"),
+    "ScanTruth": ("truth", "ScanTruth"), "truth_path": ("truth", "truth_path"),
+}
+
+
+def __getattr__(name: str):
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module, attribute = _WHERE[name]
+    value = getattr(import_module(f"{__name__}.{module}"), attribute)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "RASTER_DROP_OFF",

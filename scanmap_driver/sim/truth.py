@@ -31,6 +31,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,8 +39,10 @@ from ..errors import RecordingError
 from ..files import load_npz, save_npz
 from ..recording import GROUND_TRUTH, scan_name
 from ..transforms import se2_to_pose
-from .plan import ScanPlan
-from .render import FrameTruth
+
+if TYPE_CHECKING:  # the renderer (and Open3D) is not needed to read truth files
+    from .plan import ScanPlan
+    from .render import FrameTruth
 
 FORMAT_VERSION = 1
 _LASER = ("frame", "u", "v", "heading", "head", "base", "map", "shadowed", "primary",
