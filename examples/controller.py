@@ -13,7 +13,8 @@ second and commands a forward speed:
 * at most --creep m/s while unknown space is nearer than any obstacle (the scanner
   cannot see the floor right under and beside the robot: unknown is never free);
 * zero when the data are stale (the newest scan older than --max-age), the sensor is
-  faulted, or no scan has arrived yet.
+  faulted, the pose is invalid (not finite or beyond the map's coordinate limit: a
+  diverged filter), or no scan has arrived yet.
 
 When the recording ends no new scans come, the data go stale and the robot stops. It
 prints what it did and the latency percentiles of the `nearest` calls.
@@ -49,7 +50,7 @@ class Limits:
 
 def speed_command(nearest: Nearest, limits: Limits) -> tuple[float, str]:
     """Forward speed (m/s) for a `nearest` answer, and why."""
-    if nearest.status in (QueryStatus.STALE, QueryStatus.FAULTED):
+    if nearest.status in (QueryStatus.STALE, QueryStatus.FAULTED, QueryStatus.INVALID):
         return 0.0, nearest.status.name.lower()
     if not np.isfinite(nearest.age):
         return 0.0, "no data"
