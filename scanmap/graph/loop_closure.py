@@ -179,11 +179,12 @@ class LoopCloser:
         """The graph as arrays, to save with a map (call after `finish`): corrected poses
         (N, 4, 4); edges (E, 3) source, target, loop; their measurements (E, 4, 4) and
         information (E, 3, 3); every node's kept points, concatenated (`clouds`, float32)
-        with their counts (`cloud_sizes`); the keyframes' node ids."""
+        with their counts (`cloud_sizes`); the keyframes' node ids; how many first nodes
+        are held `fixed`."""
         with self._lock:
             n = len(self._clouds)
             edges = [e for e in self.graph.edges if max(e.source, e.target) < n]
-            return {"poses": self._estimates(n),
+            return {"poses": self._estimates(n), "fixed": np.array(self.graph.fixed, np.int64),
                     "edges": np.array([[e.source, e.target, e.loop] for e in edges],
                                       np.int64).reshape(-1, 3),
                     "measurements": np.array([e.measurement for e in edges]).reshape(-1, 4, 4),
@@ -215,7 +216,25 @@ class LoopCloser:
             closer._keyframes.append(node)
             closer._descriptors.append(describe(closer._context(node, before_only=True),
                                                 c.rings, c.sectors, c.descriptor_radius))
+        closer.graph.fixed = int(state.get("fixed", 1))
         closer._optimised = poses.copy()  # the poses are corrected: no correction pending
+        return closer
+
+    @classmethod
+    def extending(cls, poses: np.ndarray, config: LoopClosureConfig | None = None,
+                  registration: RegistrationConfig | None = None) -> LoopCloser:
+        """A new graph continuing a map saved without one: its scans' `poses` (N, 4, 4)
+        become fixed nodes without points (no loop closes onto them; the next scan's
+        odometry edge joins the last), so the loaded map stays as it is."""
+        closer = cls(config, registration)
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
+        for pose in poses:
+            closer.graph.add_node(pose)
+        closer.graph.fixed = len(poses)
+        steps = np.linalg.norm(np.diff(poses[:, :2, 3], axis=0), axis=1)
+        closer._travel = np.concatenate([[0.0], np.cumsum(steps)])[:len(poses)].tolist()
+        closer._clouds = [np.zeros((0, 3), np.float32) for _ in poses]
+        closer._optimised = poses.copy()
         return closer
 
     def finish(self) -> None:
@@ -352,6 +371,7 @@ class LoopCloser:
             n = len(self._clouds)
             snapshot = PoseGraph()
             snapshot.poses = self.graph.poses[:n]
+            snapshot.fixed = self.graph.fixed
             snapshot.edges = [e for e in self.graph.edges if max(e.source, e.target) < n]
             initial = self._estimates(n)
         start = time.perf_counter()

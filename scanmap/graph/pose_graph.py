@@ -36,11 +36,16 @@ class Edge:
 
 
 class PoseGraph:
-    """Nodes and edges; `optimise` returns corrected poses and leaves the graph as it is."""
+    """Nodes and edges; `optimise` returns corrected poses and leaves the graph as it is.
+
+    fixed: the first nodes held where they are (at least node 0): a map loaded without a
+    graph, whose scans the new graph extends but cannot move.
+    """
 
     def __init__(self) -> None:
         self.poses: list[np.ndarray] = []
         self.edges: list[Edge] = []
+        self.fixed = 1
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -67,10 +72,12 @@ class PoseGraph:
 
     def optimise(self, initial: np.ndarray | None = None, loop_kernel: float = 3.0,
                  max_iterations: int = 50) -> np.ndarray:
-        """(N, 4, 4) poses minimising all edges' errors, node 0 held fixed.
+        """(N, 4, 4) poses minimising all edges' errors, the `fixed` first nodes held.
 
         initial: (N, 4, 4) start (default the nodes' poses); z, roll and pitch of each
-        node are kept from it. loop_kernel: Cauchy scale of loop edges, in sigmas.
+        node are kept from it, and fixed nodes wholly (constants, not variables; an edge
+        from one is a prior on the other node). loop_kernel: Cauchy scale of loop edges
+        (sigmas).
         """
         import gtsam
 
@@ -78,26 +85,37 @@ class PoseGraph:
         if len(start) != len(self):
             raise MapError(f"PoseGraph.optimise: {len(start)} initial poses for {len(self)} "
                            "nodes")
+        fixed = min(max(self.fixed, 1), len(self))
         graph = gtsam.NonlinearFactorGraph()
         values = gtsam.Values()
-        for i, pose in enumerate(start):
-            values.insert(i, gtsam.Pose2(*pose_to_se2(pose)))
-        if len(self):
-            graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*pose_to_se2(start[0])),
-                                             gtsam.noiseModel.Constrained.All(3)))
+        for i in range(fixed, len(self)):
+            values.insert(i, gtsam.Pose2(*pose_to_se2(start[i])))
         kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(loop_kernel)
         for edge in self.edges:
-            noise = gtsam.noiseModel.Gaussian.Information(edge.information)
+            source, target = edge.source, edge.target
+            measurement = gtsam.Pose2(*pose_to_se2(edge.measurement))
+            information = edge.information
+            if target < fixed <= source:  # seen the other way round: the fixed node first
+                adjoint = np.linalg.inv(measurement.AdjointMap())
+                source, target, measurement = target, source, measurement.inverse()
+                information = adjoint.T @ information @ adjoint
+            if target < fixed:
+                continue  # between two fixed nodes: nothing to optimise
+            noise = gtsam.noiseModel.Gaussian.Information(information)
             if edge.loop:
                 noise = gtsam.noiseModel.Robust.Create(kernel, noise)
-            graph.add(gtsam.BetweenFactorPose2(edge.source, edge.target,
-                                               gtsam.Pose2(*pose_to_se2(edge.measurement)),
-                                               noise))
+            if source < fixed:  # a fixed node is a constant: the edge is a prior
+                anchor = gtsam.Pose2(*pose_to_se2(start[source]))
+                graph.add(gtsam.PriorFactorPose2(target, anchor.compose(measurement), noise))
+            else:
+                graph.add(gtsam.BetweenFactorPose2(source, target, measurement, noise))
+        out = start.copy()
+        if fixed == len(self):
+            return out
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(max_iterations)
         result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
-        out = start.copy()
-        for i in range(len(self)):
+        for i in range(fixed, len(self)):
             p = result.atPose2(i)
             planar = se2_to_pose(p.x(), p.y(), p.theta())
             # Keep the start's z, roll, pitch: the graph moves the pose in the plane only.

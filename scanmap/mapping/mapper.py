@@ -22,7 +22,9 @@ Scans come live from the `Scanner` (`start(ContinuousScanning(...))`: a backgrou
 thread, `mapping_thread`), from a recording or from processed scan files
 (`scan_input.ScanSource`, offline at full speed: `map_scans`). `save` writes the whole
 map to one `.npz` (`mapper_file`); `Mapper.load` reads it and resumes mapping: the next
-scan registers against the points the robot saw last.
+scan registers against the points the robot saw last. Loop closure resumes the saved
+graph; over a map saved without one it starts a new graph, the loaded scans fixed and
+the loaded grid the base every rebuild starts from.
 
 Clocks: obstacle queries are STALE when the newest scan is older than `max_age` by the
 mapper's clock: `time.monotonic` by default (the live scanner's clock); `offline=True`
@@ -56,7 +58,6 @@ from scanmap.navigation.floor import Segmentation, segment
 from scanmap.navigation.obstacles import ObstacleMap
 from scanmap.registration import RegistrationResult, ScanOdometry
 from scanmap.stage_clock import StageClock
-from scanmap_driver.errors import MapError
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel, reference_scanner
 from scanmap_driver.transforms import invert_pose, transform_points
@@ -115,6 +116,9 @@ class Mapper:
         # per grid cell) and its time, to rebuild the grid at corrected poses; None when
         # the scan was not fused.
         self._contributions: list[tuple[np.ndarray, np.ndarray, float] | None] = []
+        # With loop closure over a map loaded without a graph: that map's grid (`state()`),
+        # which every rebuild starts from.
+        self._base: dict[str, np.ndarray] | None = None
 
     # -- mapping -------------------------------------------------------------------------
     def add(self, scan: Scan) -> MapUpdate:
@@ -183,7 +187,8 @@ class Mapper:
             self._applied = closer.version
             poses = closer.corrected_poses()
             self._rebuild = (self._rebuilder.submit(rebuild_grid, self.config.grid, poses,
-                                                    self._contributions[:len(poses)]), poses)
+                                                    self._contributions[:len(poses)],
+                                                    self._base), poses)
 
     def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
         poses = frame_poses(scan, pose)
@@ -317,22 +322,29 @@ class Mapper:
             return {}
         kept = [k for k in self._contributions if k is not None]
         empty = np.zeros((0, 3), np.float32)
-        return {**self.loop_closer.state(),
+        base = {} if self._base is None else {f"base_{k}": v for k, v in self._base.items()}
+        return {**self.loop_closer.state(), **base,
                 "kept_points": np.concatenate([empty, *(k[0] for k in kept)]),
                 "kept_origins": np.concatenate([empty, *(k[1] for k in kept)]),
                 "kept_sizes": np.array([-1 if k is None else len(k[0])
                                         for k in self._contributions], np.int64),
                 "kept_stamps": np.array([k[2] for k in kept], np.float64)}
 
-    def _resume_loops(self, state: MapperState, path: str | os.PathLike[str]) -> None:
-        """Continue the saved pose graph (a map saved with loop closure on)."""
-        if not state.loop_closure:
-            raise MapError(f"{path}: saved without loop closure; its graph cannot be resumed "
-                           "(load it with loop_closure.enabled = false)")
+    def _resume_loops(self, state: MapperState) -> None:
+        """Continue the saved pose graph; a map saved without one starts a new graph whose
+        first nodes are its scans, fixed, and its grid the base every rebuild starts from."""
         self.loop_closer.close()
         c = self.config
-        self.loop_closer = LoopCloser.restore(state.loop_closure, c.loop_closure, c.registration)
-        self._contributions = _split_kept(state.loop_closure)
+        loops = state.loop_closure
+        if not loops:
+            self.loop_closer = LoopCloser.extending(state.poses, c.loop_closure, c.registration)
+            self._contributions = [None] * len(state.poses)
+            self._base = state.grid.state()
+            return
+        self.loop_closer = LoopCloser.restore(loops, c.loop_closure, c.registration)
+        self._contributions = _split_kept(loops)
+        base = {k[len("base_"):]: v for k, v in loops.items() if k.startswith("base_")}
+        self._base = base or None
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], *, clock: Callable[[], float] = time.monotonic,
@@ -358,7 +370,7 @@ class Mapper:
         if len(state.points):
             mapper._kept = [(state.points, state.point_colors)]
         if mapper.loop_closer is not None:
-            mapper._resume_loops(state, path)
+            mapper._resume_loops(state)
         if last is not None and len(state.resume_points):
             odometry = state.odometry[-1]
             mapper.registration.register_points(
@@ -386,10 +398,13 @@ def _split_kept(loops: dict[str, np.ndarray]
 
 
 def rebuild_grid(config: GridConfig, poses: np.ndarray,
-                 contributions: list[tuple[np.ndarray, np.ndarray, float] | None]) -> HeightGrid:
+                 contributions: list[tuple[np.ndarray, np.ndarray, float] | None],
+                 base: dict[str, np.ndarray] | None = None) -> HeightGrid:
     """A grid of every scan's kept (points, ray origins, time) in base_link, placed at its
-    pose (None: a scan that was not fused); a rolling window centres on the last pose."""
-    grid = HeightGrid(config)
+    pose (None: a scan that was not fused); a rolling window centres on the last pose.
+    base: a grid's `state()` to start from (default empty)."""
+    grid = HeightGrid(config) if base is None else HeightGrid.from_state(config, base,
+                                                                          "base map")
     if config.window is not None:
         grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
     for pose, kept in zip(poses, contributions, strict=True):

@@ -18,9 +18,12 @@ reads it) plus the mapper's own arrays:
     points, point_colors (K, 3) float32 in map and uint8 RGB: kept points (overhead view)
     loop_closure_*       with loop closure only: the pose graph (`LoopCloser.state`:
                          poses, edges, measurements, information, clouds, cloud_sizes,
-                         keyframes) and the Mapper's per-scan kept points for rebuilding
-                         the grid (kept_points, kept_origins in base_link, kept_sizes
-                         (N,) with -1 for a scan not fused, kept_stamps)
+                         keyframes, optional fixed: the first nodes held) and the
+                         Mapper's per-scan kept points for rebuilding the grid
+                         (kept_points, kept_origins in base_link, kept_sizes (N,) with -1
+                         for a scan not fused, kept_stamps); base_*: the grid's arrays
+                         that rebuilds start from, when the graph began over a map
+                         saved without one
 
 Written atomically; read without pickle; a missing or malformed array is a MapError
 naming the file and the array.

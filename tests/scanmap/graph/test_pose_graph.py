@@ -56,3 +56,22 @@ def test_planar_information_floors_the_sigmas():
     information = planar_information(covariance, (0.02, 0.005))
     np.testing.assert_allclose(np.linalg.inv(information),
                                np.diag([1e-6 + 4e-4, 4e-6 + 4e-4, 1e-8 + 2.5e-5]))
+
+
+@pytest.mark.parametrize("fixed", [1, 2])
+def test_an_edge_onto_a_fixed_node_counts_as_one_from_it(fixed):
+    # The loop measured the other way round (2 -> 0, -2.3 m): the same least squares.
+    graph = chain(2.3, loop=False)
+    graph.poses[0], graph.poses[1] = np.eye(4), se2_to_pose(0.9, 0.0, 0.0)
+    loop = graph.edges.pop()
+    graph.edges.append(type(loop)(2, 0, se2_to_pose(-2.3, 0.0, 0.0), loop.information))
+    graph.fixed = fixed
+    held = pose_to_se2(graph.poses[1])
+    poses = graph.optimise()
+    if fixed == 1:
+        x1, x2 = np.linalg.solve([[200.0, -100.0], [-100.0, 500.0]], [0.0, 100.0 + 920.0])
+        expected = [[0, 0, 0], [x1, 0, 0], [x2, 0, 0]]
+    else:  # node 1 held at its start; node 2 between its two springs
+        x2 = (100.0 * (held[0] + 1.0) + 400.0 * 2.3) / 500.0
+        expected = [[0, 0, 0], held, [x2, 0, 0]]
+    np.testing.assert_allclose([pose_to_se2(p) for p in poses], expected, atol=1e-6)

@@ -1,0 +1,57 @@
+"""Loop closure switched on over a map saved without it: a new graph extends the map."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scanmap.evaluation import ate_rmse
+from scanmap.graph import LoopClosureConfig
+from scanmap.grid.height_grid import HeightGrid
+from scanmap.io.map_files import load_map
+from scanmap.mapping import Mapper, MapperConfig
+from scanmap_driver.transforms import transform_points
+
+PLAIN = MapperConfig(update_obstacles=False)
+CLOSING = MapperConfig(loop_closure=LoopClosureConfig(enabled=True), update_obstacles=False)
+
+
+def test_a_map_without_a_graph_is_extended_by_a_new_one(ring_ideal, tmp_path):
+    first = 6  # scans mapped on the first day, without loop closure
+    day_one = Mapper(config=PLAIN, offline=True, initial_pose=ring_ideal[0].pose_start)
+    day_one.map_scans(s.scan for s in ring_ideal[:first])
+    day_one.save(tmp_path / "day1.npz")
+    saved = day_one.trajectory().poses
+
+    day_two = Mapper.load(tmp_path / "day1.npz", offline=True, config=CLOSING)
+    day_two.map_scans(s.scan for s in ring_ideal[first:])
+    day_two.close_loops()
+    closer = day_two.loop_closer
+    assert closer.graph.fixed == first
+    assert closer.loops and closer.version > 0  # the ring closed among day two's scans
+    assert all(loop.candidate >= first for loop in closer.loops)  # day one has no points
+    poses = day_two.trajectory().poses
+    np.testing.assert_array_equal(poses[:first], saved)  # the loaded map does not move
+    truth = np.array([s.pose_start for s in ring_ideal])
+    assert ate_rmse(poses, truth, "se2") < 0.05
+
+    # The map is day one's grid plus day two's kept rays at the corrected poses.
+    reference = load_map(tmp_path / "day1.npz").grid
+    for pose, kept in zip(poses[first:], day_two._contributions[first:], strict=True):
+        if kept is not None:
+            reference.insert(transform_points(pose, kept[0]), transform_points(pose, kept[1]),
+                             kept[2])
+    assert_same_grid(day_two.grid, reference)
+
+    # Saved again and reloaded, the base map and the fixed nodes stay.
+    day_two.save(tmp_path / "day2.npz")
+    day_three = Mapper.load(tmp_path / "day2.npz", offline=True, config=CLOSING)
+    assert day_three.loop_closer.graph.fixed == first
+    assert_same_grid(HeightGrid.from_state(CLOSING.grid, day_three._base), load_map(
+        tmp_path / "day1.npz").grid)
+
+
+def assert_same_grid(a: HeightGrid, b: HeightGrid) -> None:
+    la, lb = a.layers(), b.layers()
+    assert a.bounds() == b.bounds()
+    for name in ("levels", "counts", "nlev", "seen"):
+        np.testing.assert_array_equal(getattr(la, name), getattr(lb, name), err_msg=name)
