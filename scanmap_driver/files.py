@@ -32,11 +32,17 @@ os.umask(_UMASK)
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path beside `path`; rename it over `path` if the block succeeds."""
+    """Yield a temporary path beside `path`; rename it over `path` if the block succeeds.
+
+    The temporary name carries this process's id, so that the first write into a folder
+    removes what killed writers left there (`remove_orphans`)."""
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp" + target.suffix,
-                                    dir=target.parent)
+    if target.parent not in _SWEPT:
+        remove_orphans(target.parent)
+        _SWEPT.add(target.parent)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.{os.getpid()}.",
+                                    suffix=_TMP + target.suffix, dir=target.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual mode
@@ -45,6 +51,39 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         publish(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+_TMP = ".tmp"
+_SWEPT: set[Path] = set()  # folders this process has swept already
+
+
+def remove_orphans(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temporary files of `atomic_path` in `folder` whose writer is dead (killed
+    mid-write: SIGKILL, a power cut); return them. Another live writer's are kept."""
+    removed = []
+    for tmp in Path(folder).glob(f".*.*.*{_TMP}*"):
+        pid = _writer_pid(tmp.name)
+        if pid is not None and pid != os.getpid() and not _alive(pid):
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+    return removed
+
+
+def _writer_pid(name: str) -> int | None:
+    """The writer's process id in an `atomic_path` temporary name, else None."""
+    stem = name[: name.rfind(_TMP)] if _TMP in name else ""
+    parts = stem.rsplit(".", 2)  # ".target", pid, mkstemp's random part
+    return int(parts[1]) if len(parts) == 3 and parts[1].isdigit() else None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's process
+    return True
 
 
 def fsync_file(path: str | os.PathLike[str]) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from scanmap_driver.errors import ScanmapError
-from scanmap_driver.files import load_npz, read_json, save_npz, write_json
+from scanmap_driver.files import load_npz, read_json, remove_orphans, save_npz, write_json
 from scanmap_driver.recording import Recording, read_avi_frames
 
 KILLS = 8
@@ -85,11 +85,24 @@ def test_a_killed_writer_leaves_the_old_file_or_the_new_one(kind, tmp_path):
         kill(child)
         found = read_generation(kind, path)
         assert found >= done  # a finished write is never lost
+        # the writer's first write swept what the one killed before had left
         leftovers = [p for p in tmp_path.iterdir() if p != path]
+        assert len(leftovers) <= 1
         mid_write += bool(leftovers)
-        for leftover in leftovers:
-            leftover.unlink()
     assert mid_write > 0  # some kills landed inside a write: the hazard was exercised
+    once = subprocess.run([sys.executable, "-c", WRITE_ONCE, kind, str(path)],
+                          env=os.environ | {"PYTHONPATH": str(Path.cwd())}, check=True)
+    assert once.returncode == 0
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no orphan left
+    assert read_generation(kind, path) == -1
+
+
+WRITE_ONCE = """
+import sys
+from pathlib import Path
+from tests.test_durable_writes import write_generation
+write_generation(sys.argv[1], Path(sys.argv[2]), -1)
+"""
 
 
 RECORDER = """
@@ -144,3 +157,22 @@ def test_a_recording_killed_mid_scan_keeps_every_frame_written(seed, office_reco
     assert f"recovered {len(frames)} frames" in printed
     summary = json.loads((processed / "summary.json").read_text())
     assert summary["scans"][1]["frames"] == len(frames) and not summary["scans"][1]["complete"]
+
+
+def test_only_the_temporary_files_of_dead_writers_are_removed(tmp_path):
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    try:
+        names = {"live": f".map.npz.{live.pid}.ab_1.tmp.npz",
+                 "dead": f".map.npz.{dead.pid}.cd_2.tmp.npz",
+                 "user's": ".notes.txt", "plain": "map.npz"}
+        for name in names.values():
+            (tmp_path / name).write_bytes(b"x")
+        removed = remove_orphans(tmp_path)
+        assert [p.name for p in removed] == [names["dead"]]
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+            n for k, n in names.items() if k != "dead")
+    finally:
+        live.kill()
+        live.wait()

@@ -171,8 +171,9 @@ class BagFile:
     """A bag being written: ROS 2 with MCAP storage (`path` a `.mcap` file) or ROS 1
     (`ros1`, a `.bag` file). A context manager; `write` adds topics as they come.
 
-    The ROS 2 bag is written by rosbags into a folder beside `path` and its `.mcap` file
-    moved to `path` on `close`, so `path` only ever holds a finished bag.
+    Either bag is written by rosbags into a folder beside `path` (`NAME.writing`) and its
+    file moved to `path` on `close`, so `path` only ever holds a finished bag; a writer
+    killed before it closed leaves the folder, which the next bag of that name replaces.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, ros1: bool = False) -> None:
@@ -187,11 +188,14 @@ class BagFile:
         self.store = typestore_for(ros1)
         self.messages = RosMessages(self.store)
         self._folder = self.path.with_name(self.path.name + ".writing")
+        if self._folder.exists():
+            shutil.rmtree(self._folder)  # an earlier run's, killed before it closed
         if ros1:
-            self._writer = Writer1(self.path)
+            self._folder.mkdir()
+            self._file = self._folder / self.path.name
+            self._writer = Writer1(self._file)
         else:
-            if self._folder.exists():
-                shutil.rmtree(self._folder)  # an earlier run's, killed before it closed
+            self._file = self._folder / f"{self._folder.name}.mcap"
             self._writer = Writer2(self._folder, version=9, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._connections: dict[str, object] = {}
@@ -234,9 +238,8 @@ class BagFile:
             return
         self.closed = True
         self._writer.close()
-        if not self.ros1:
-            publish(self._folder / f"{self._folder.name}.mcap", self.path)
-            shutil.rmtree(self._folder)
+        publish(self._file, self.path)
+        shutil.rmtree(self._folder)
 
     def __enter__(self) -> BagFile:
         return self

@@ -192,7 +192,7 @@ from scanmap.cli.commands.export import _sigterm_interrupts
 from scanmap.datasets.rosbag import BagScans
 from scanmap.pipelines.ros_export import BagWriter
 
-with _sigterm_interrupts(), BagWriter(sys.argv[2]) as writer:
+with _sigterm_interrupts(), BagWriter(sys.argv[2], ros1=sys.argv[2].endswith(".bag")) as writer:
     for done, scan in enumerate(BagScans(sys.argv[1], "/scan"), start=1):
         writer.add(scan, np.eye(4))
         if done == 3:
@@ -201,14 +201,28 @@ with _sigterm_interrupts(), BagWriter(sys.argv[2]) as writer:
 """
 
 
-def test_sigterm_midway_leaves_a_closed_bag(tmp_path: Path):
+@pytest.mark.parametrize("name", ["cut.mcap", "cut.bag"])
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGKILL])
+def test_a_writer_stopped_midway_leaves_a_whole_bag_or_none(tmp_path: Path, name, how):
+    """SIGTERM closes the bag with what was written; SIGKILL leaves no bag at all (never a
+    torn one), and the next writer of that name starts afresh."""
     write_laser_bag(tmp_path / "room.mcap")
     child = subprocess.Popen([sys.executable, "-c", KILLED_MIDWAY, str(tmp_path / "room.mcap"),
-                              str(tmp_path / "cut.mcap")], stdout=subprocess.PIPE, text=True)
+                              str(tmp_path / name)], stdout=subprocess.PIPE, text=True)
     try:
         assert child.stdout.readline().strip() == "ready"
-        child.send_signal(signal.SIGTERM)
+        child.send_signal(how)
         assert child.wait(timeout=30) != 0
     finally:
         child.kill()
-    assert len(read_bag(tmp_path / "cut.mcap")["/scanmap/points"]) == 3
+        child.stdout.close()
+    if how == signal.SIGTERM:
+        assert len(read_bag(tmp_path / name)["/scanmap/points"]) == 3
+        return
+    assert not (tmp_path / name).exists() and (tmp_path / f"{name}.writing").exists()
+    source = BagScans(tmp_path / "room.mcap", "/scan")
+    with BagWriter(tmp_path / name, ros1=name.endswith(".bag")) as again:
+        for scan in source:
+            again.add(scan, np.eye(4))
+    assert len(read_bag(tmp_path / name)["/scanmap/points"]) == source.count
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["room.mcap", name])
