@@ -7,7 +7,8 @@ Rows:
 * insert: one 20,000-point scan with ray clearing at 5 cm (steady state, grid already
   holding the office), ours (bundled rays, and every ray traced) against OctoMap's
   insertPointCloud at 0.05 m with each frame's camera centre as origin, same points.
-* distance field: exact EDT of a 20 m x 20 m window (400 x 400), against scipy's.
+* distance field: exact EDT of a 20 m x 20 m window (400 x 400), against scipy's and
+  OpenCV's, all scored against a k-d tree search for the nearest blocked cell.
 * distance(): per point, batches of 1e6; nearest(): one call from Python while another
   thread inserts scans (median and p99).
 * accuracy: obstacle-cell F1 in the robot band (recall over the cells true points in the
@@ -19,6 +20,8 @@ Rows:
   decides), and, for distances, the queries whose nearest object no scan saw (after few
   scans, part of the room is unseen: a map cannot know it, and its clearance, which
   counts unknown space, stays below the truth there).
+Every peer runs in a process of its own with a time limit (`run_isolated`): a crash or a
+hang is reported as that peer's failure, in its place.
 """
 
 from __future__ import annotations
@@ -30,9 +33,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from benchmarks.isolation import PeerFailed, run_isolated
 from benchmarks.timing import first_call_time, median_time
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
@@ -175,7 +178,8 @@ def floor_scores(seg, truth: Truth, scored: np.ndarray) -> tuple[float, float, i
     return float(precision), float(recall), int(free_on_obstacle.sum())
 
 
-def accuracy_rows(scene, scans, grid: HeightGrid, octomap_f1: dict | None) -> list[dict]:
+def accuracy_rows(scene, scans, grid: HeightGrid, octomap_f1: dict | None,
+                  octomap_failed: str | None = None) -> list[dict]:
     """Score the grid against the truth raster and the scene geometry."""
     truth = Truth.of(scene, scans)
     ny, nx = truth.raster.classes.shape
@@ -202,6 +206,8 @@ def accuracy_rows(scene, scans, grid: HeightGrid, octomap_f1: dict | None) -> li
     peers = {}
     if octomap_f1 is not None:
         peers["octomap"] = {"error": 1.0 - octomap_f1["f1"], "f1_strict": octomap_f1["f1_strict"]}
+    elif octomap_failed:
+        peers["octomap"] = {"failed": octomap_failed}
     settings = (f"office, {len(scans)} ideal scans, band {ROBOT.step_height}-{ROBOT.height} m; "
                 f"fair: {int((~truth.scored).sum())} cells a face only grazes not scored")
     return [
@@ -238,61 +244,63 @@ def octomap_frames(scan) -> list[tuple[np.ndarray, np.ndarray]]:
             for f in np.unique(frames)]
 
 
-def octomap_peer(resolution: float = 0.05, discretize: bool = False):
-    """An OctoMap OcTree and a function inserting one scan's frames into it as a user of
-    this scanner would: insertPointCloud per frame with that frame's camera centre as
-    origin (the head turns the camera 7 cm round the axis), whole beams (maxrange -1:
-    the scanner already drops points beyond its 4 m range; a shorter maxrange would turn
-    its far points into free space), inner nodes updated (lazy_eval off: a user then has
-    a map to query); `discretize` is OctoMap's option to trace one ray per endpoint
-    voxel. OctoMap runs on one core here (this build's OpenMP loop uses one thread: CPU
-    time equals wall time)."""
+def octomap_peer(scans, timed_frames, repeats: int) -> dict:
+    """OctoMap as a user of this scanner would run it, every scan of `scans` inserted:
+    insertPointCloud per frame with that frame's camera centre as origin (the head turns
+    the camera 7 cm round the axis), whole beams (maxrange -1: the scanner already drops
+    points beyond its 4 m range; a shorter maxrange would turn its far points into free
+    space), inner nodes updated (lazy_eval off: a user then has a map to query). Returns
+    the occupied voxel centres of the plain tree (before any timing) and the median CPU
+    time of inserting `timed_frames` into a tree already holding the office, plain and
+    with `discretize` (OctoMap's option to trace one ray per endpoint voxel). OctoMap runs
+    on one core here (this build's OpenMP loop uses one thread: CPU time equals wall
+    time). Run in a process of its own (`run_isolated`)."""
     import octomap
 
-    tree = octomap.OcTree(resolution)
+    occupied, seconds = None, {}
+    for name, discretize in (("octomap 0.05 m", False), ("octomap 0.05 m, discretize", True)):
+        tree = octomap.OcTree(0.05)
 
-    def insert(frames: list[tuple[np.ndarray, np.ndarray]]) -> None:
-        for points, origin in frames:
-            tree.insertPointCloud(points, origin, discretize=discretize)
+        def insert(frames, tree=tree, discretize=discretize) -> None:
+            for points, origin in frames:
+                tree.insertPointCloud(points, origin, discretize=discretize)
 
-    return tree, insert
+        for scan in scans:
+            insert(octomap_frames(scan))
+        if occupied is None:
+            occupied = np.asarray(tree.extractPointCloud()[0])
+        seconds[name] = median_time(lambda i=insert: i(timed_frames), repeats=repeats,
+                                    clock=time.thread_time)
+    return {"occupied": occupied, "median_s": seconds}
 
 
-def octomap_f1(tree, truth_scene, scans) -> dict[str, float]:
+def octomap_f1(occupied: np.ndarray, truth_scene, scans) -> dict[str, float]:
     """OctoMap's occupied voxels in the robot band, projected to 2-D cells, scored."""
     truth = Truth.of(truth_scene, scans)
-    occupied, _ = tree.extractPointCloud()
-    occupied = np.asarray(occupied)
     band = (occupied[:, 2] > ROBOT.step_height) & (occupied[:, 2] < ROBOT.height)
     predicted = np.zeros(truth.raster.classes.shape, bool)
     predicted[cells_of(occupied[band], truth.raster.origin, 0.05, predicted.shape)] = True
     return truth.obstacle_f1(predicted)
 
 
-def resampled(scan, n: int = 20_000):
-    """The scan cut (or repeated) to exactly n rays, whole frames first."""
-    points, origins, frames, true = scan
+def timed_scan(scans, n: int = 20_000):
+    """The middle scan cut (or repeated) to exactly n rays, whole frames first."""
+    points, origins, frames, true = scans[len(scans) // 2]
     index = np.arange(n) % len(points)
     return points[index], origins[index], frames[index], true[index]
 
 
-def insertion_rows(scans, grid_config: GridConfig, quick: bool) -> list[dict]:
+def insertion_rows(scans, grid_config: GridConfig, quick: bool, octomap: dict) -> list[dict]:
     """Insertion of one 20,000-ray scan into a grid (and OctoMaps) already holding the
     office: CPU time on one core (time.thread_time), which the other jobs sharing the
-    machine disturb less than wall time."""
-    scan = resampled(scans[len(scans) // 2])
+    machine disturb less than wall time. `octomap`: `octomap_peer`'s answer or a failure."""
+    scan = timed_scan(scans)
     points, origins, _, _ = scan
+    frames = len(octomap_frames(scan))
     rows = []
     repeats = 5 if quick else 30
-    peers = {}
-    frames = octomap_frames(scan)
-    for name, discretize in (("octomap 0.05 m", False), ("octomap 0.05 m, discretize", True)):
-        _, octo_insert = octomap_peer(discretize=discretize)
-        for scan_k in scans:
-            octo_insert(octomap_frames(scan_k))
-        peers[name] = {"median_s": median_time(lambda i=octo_insert: i(frames),
-                                               repeats=3 if quick else 7,
-                                               clock=time.thread_time)}
+    peers = ({name: {"median_s": t} for name, t in octomap["median_s"].items()}
+             if "median_s" in octomap else {"octomap 0.05 m": octomap})
     for label, config in (("bundled rays (default)", grid_config),
                           ("every ray traced", GridConfig(bundle_run=0))):
         grid = HeightGrid(config)
@@ -307,12 +315,45 @@ def insertion_rows(scans, grid_config: GridConfig, quick: bool) -> list[dict]:
 
         ours = median_time(insert, repeats=repeats, clock=time.thread_time)
         rows.append({"stage": "grid insert", "method": f"numba, {label}",
-                     "settings": f"20,000 rays ({len(frames)} frames), 5 cm cells, office, "
+                     "settings": f"20,000 rays ({frames} frames), 5 cm cells, office, "
                                  "map already built; CPU time, one core",
                      "median_s": ours, "error": None, "compile_s": compile_s,
-                     "octomap_ratio": peers["octomap 0.05 m"]["median_s"] / ours,
                      "peers": peers})
     return rows
+
+
+def scipy_edt(free: np.ndarray, repeats: int) -> tuple[float, np.ndarray]:
+    """scipy's exact EDT of `free` (with nearest indices, as ours): median CPU time and the
+    distances. Run in a process of its own (`run_isolated`)."""
+    from scipy import ndimage
+
+    seconds = median_time(lambda: ndimage.distance_transform_edt(free, return_indices=True),
+                          repeats=repeats, clock=time.thread_time)
+    return seconds, ndimage.distance_transform_edt(free)
+
+
+def cv2_edt(free: np.ndarray, repeats: int) -> tuple[float, np.ndarray]:
+    """OpenCV's distanceTransform of `free` (L2, precise mask; no nearest index): median
+    CPU time and the distances. Run in a process of its own (`run_isolated`)."""
+    import cv2
+
+    image = free.astype(np.uint8)
+    seconds = median_time(lambda: cv2.distanceTransform(image, cv2.DIST_L2,
+                                                        cv2.DIST_MASK_PRECISE),
+                          repeats=repeats, clock=time.thread_time)
+    return seconds, cv2.distanceTransform(image, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+
+
+EDT_PEERS = {"scipy edt": scipy_edt, "cv2 distanceTransform (no index)": cv2_edt}
+
+
+def exact_distance(blocked: np.ndarray) -> np.ndarray:
+    """Distance (cells) from every cell to the nearest blocked cell, by a k-d tree search:
+    the truth the transforms are scored against."""
+    rows, cols = np.indices(blocked.shape)
+    cells = np.column_stack([rows.ravel(), cols.ravel()])
+    distance, _ = cKDTree(cells[blocked.ravel()]).query(cells)
+    return distance.reshape(blocked.shape)
 
 
 def field_rows(grid: HeightGrid, quick: bool) -> list[dict]:
@@ -324,14 +365,20 @@ def field_rows(grid: HeightGrid, quick: bool) -> list[dict]:
     first = first_call_time(lambda: distance_transform(blocked))
     ours = median_time(lambda: distance_transform(blocked), repeats=5 if quick else 30,
                        clock=time.thread_time)
-    scipy_s = median_time(lambda: ndimage.distance_transform_edt(~blocked, return_indices=True),
-                          repeats=3 if quick else 10, clock=time.thread_time)
+    exact = exact_distance(blocked)
+    peers = {}
+    for name, peer in EDT_PEERS.items():
+        try:
+            seconds, distance = run_isolated(peer, ~blocked, 3 if quick else 10)
+            peers[name] = {"median_s": seconds, "error": float(np.abs(distance - exact).max())}
+        except PeerFailed as exc:  # a peer that fails is reported in its place
+            peers[name] = {"failed": str(exc)}
     distance, _ = distance_transform(blocked)
-    error = float(np.abs(distance - ndimage.distance_transform_edt(~blocked)).max())
     return [{"stage": "distance field", "method": "numba Felzenszwalb-Huttenlocher",
              "settings": "20 m x 20 m at 5 cm (400 x 400), with nearest index, CPU time",
-             "median_s": ours, "error": error, "error_unit": "cells (max vs scipy)",
-             "compile_s": first, "peers": {"scipy edt": {"median_s": scipy_s}}}]
+             "median_s": ours, "error": float(np.abs(distance - exact).max()),
+             "error_unit": "cells (max vs k-d tree nearest blocked cell)",
+             "compile_s": first, "peers": peers}]
 
 
 def query_rows(grid: HeightGrid, scans, quick: bool) -> list[dict]:
@@ -383,11 +430,14 @@ def run(quick: bool = False) -> list[dict]:
     grid = HeightGrid(config)
     for k, (points, origins, _, _) in enumerate(scans):
         grid.insert(points, origins, float(k))
-    tree, octo_insert = octomap_peer()
-    for scan in scans:
-        octo_insert(octomap_frames(scan))
-    rows = accuracy_rows(scene, scans, grid, octomap_f1(tree, scene, scans))
-    rows += insertion_rows(scans, config, quick)
+    try:
+        octomap = run_isolated(octomap_peer, scans, octomap_frames(timed_scan(scans)),
+                               3 if quick else 7)
+        octomap_scores = octomap_f1(octomap["occupied"], scene, scans)
+    except PeerFailed as exc:  # a peer that fails is reported in its place
+        octomap, octomap_scores = {"failed": str(exc)}, None
+    rows = accuracy_rows(scene, scans, grid, octomap_scores, octomap.get("failed"))
+    rows += insertion_rows(scans, config, quick, octomap)
     rows += field_rows(grid, quick)
     rows += query_rows(grid, scans, quick)
     return rows

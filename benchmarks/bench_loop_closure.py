@@ -10,7 +10,8 @@ closure's own worker thread, all started from the first reference pose:
 * KISS-SLAM (0.0.2): KISS-ICP odometry with the odometry increment as its motion
   prediction, local maps split every `kiss_split` m, MapClosures loop detection, its
   pose graph, poses read after its fine-grained optimisation. It gets each scan extruded
-  into a wall as the registration benchmark's peers do.
+  into a wall as the registration benchmark's peers do. It runs in a process of its own
+  with a time limit (`run_isolated`): a crash or a hang is reported as its failure.
 
 Figures: ATE RMSE after SE(2) alignment, mean error of 1 m relative motions, median wall
 time per scan (registration + the caller's part of loop closure), the loop closer's
@@ -51,6 +52,7 @@ import time
 import numpy as np
 
 from benchmarks.bench_registration import Sequence, _scores, carmen, run_ours
+from benchmarks.isolation import PeerFailed, run_isolated
 from scanmap.graph import LoopCloser, LoopClosureConfig
 from scanmap.grid.height_grid import GridConfig
 from scanmap.mapping.mapper import rebuild_grid
@@ -78,7 +80,8 @@ def run_loop_closure(seq: Sequence, config: LoopClosureConfig | None = None
 
 
 def run_kiss_slam(seq: Sequence, split: float = 10.0) -> tuple[np.ndarray, list[float]]:
-    """KISS-SLAM on the extruded scans, odometry as its prediction (see the docstring)."""
+    """KISS-SLAM on the extruded scans, odometry as its prediction (see the docstring);
+    run in a process of its own (`run_isolated`)."""
     from kiss_slam.config import KissSLAMConfig
     from kiss_slam.slam import KissSLAM
 
@@ -120,9 +123,9 @@ def compare(seq: Sequence) -> dict:
            "rebuild_s": rebuild_seconds(seq, poses)}
     peers = {"ours without loop closure": _scores(*run_ours(seq), seq)}
     try:
-        peers["KISS-SLAM"] = _scores(*run_kiss_slam(seq), seq)
-    except Exception as exc:  # a peer that fails is reported, not fatal
-        peers["KISS-SLAM"] = {"failed": f"{type(exc).__name__}: {exc}"}
+        peers["KISS-SLAM"] = _scores(*run_isolated(run_kiss_slam, seq), seq)
+    except PeerFailed as exc:  # a peer that fails is reported in its place
+        peers["KISS-SLAM"] = {"failed": str(exc)}
     row["error"], row["error_unit"] = row["ate_m"], "m, ATE RMSE (SE(2)-aligned)"
     row["peers"] = peers
     return row

@@ -61,7 +61,6 @@ EXTRUDE_HEIGHTS = (0.0, 0.1, 0.2, 0.3, 0.4)
 LOGS = ("intel", "aces", "acapulco", "belgioioso", "edmonton", "fhw", "freiburg-101")
 QUICK_SCANS = 60  # scans per real log in the quick run (about 60 m each)
 QUICK_LOGS = ("intel", "aces", "acapulco")  # the quick run: 180 and 181 beams, < 3 min
-PEER_TIMEOUT = 600.0  # s a peer may take on one sequence
 
 
 @dataclass
@@ -299,7 +298,7 @@ def compare(seq: Sequence) -> list[dict]:
     peers = {}
     for name, method in METHODS.items():
         try:
-            runs[name] = run_isolated(method, seq, timeout=PEER_TIMEOUT)
+            runs[name] = run_isolated(method, seq)
         except PeerFailed as exc:  # a peer that fails is reported, not fatal
             peers[name] = {"failed": str(exc)}
     runs["odometry alone"] = (seq.odometry_poses(), [0.0])
@@ -338,7 +337,7 @@ def reference_noise(seq: Sequence) -> dict:
     estimates = {"ours": reference_floor(seq), "odometry": seq.odometry_poses()}
     peers = {}
     try:
-        estimates["small_gicp"] = run_isolated(small_gicp_floor, seq, timeout=PEER_TIMEOUT)
+        estimates["small_gicp"] = run_isolated(small_gicp_floor, seq)
     except PeerFailed as exc:
         peers["small_gicp from the reference poses"] = {"failed": str(exc)}
     errors = {name: relative_errors(poses, seq.reference, 1.0)

@@ -15,6 +15,8 @@ from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
+PEER_TIMEOUT = 600.0  # s a peer may take on one input, unless a call says otherwise
+
 
 class PeerFailed(RuntimeError):
     """A peer that raised, crashed or ran out of time; the message says which."""
@@ -29,9 +31,11 @@ def _child(conn: Connection, func: Callable[..., Any], args: tuple) -> None:
     conn.close()
 
 
-def run_isolated(func: Callable[..., Any], *args: Any, timeout: float = 600.0) -> Any:
+def run_isolated(func: Callable[..., Any], *args: Any, timeout: float | None = None) -> Any:
     """`func(*args)` in a fresh process; PeerFailed on an exception, a crash or `timeout`
-    seconds without an answer. `func` and `args` must be picklable (module-level)."""
+    seconds (default `PEER_TIMEOUT`) without an answer. `func` and `args` must be picklable
+    (module-level)."""
+    timeout = PEER_TIMEOUT if timeout is None else timeout
     context = multiprocessing.get_context("spawn")
     receive, send = context.Pipe(duplex=False)
     process = context.Process(target=_child, args=(send, func, args), daemon=True)

@@ -28,6 +28,9 @@ def _fmt_error(row: dict[str, Any]) -> str:
 def _fmt_peers(row: dict[str, Any]) -> str:
     parts = []
     for name, peer in (row.get("peers") or {}).items():
+        if "failed" in peer:
+            parts.append(f"{name}: failed ({peer['failed']})")
+            continue
         ratio = ""
         if peer.get("median_s") and row.get("median_s"):
             ratio = f", {peer['median_s'] / row['median_s']:.3g}x our time"
