@@ -284,6 +284,69 @@ def ridge_kernel(e: np.ndarray, n_pos: int, pad: int, m: int, offset: int, side:
         count[u] >>= 1
 
 
+@njit(cache=True, nogil=True)
+def ridge_at(e: np.ndarray, pad: int, line: int, x: int, m: int, offset: int,
+             side: int) -> int:
+    """The ridge response of `ridge_kernel` at position x of one line."""
+    tri = 0
+    for k in range(-m + 1, m):
+        tri += (m - abs(k)) * np.int64(e[pad + x + k, line])
+    left = 0
+    right = 0
+    for i in range(x - offset - side + 1, x - offset + 1):
+        left += np.int64(e[pad + i, line])
+    for i in range(x + offset, x + offset + side):
+        right += np.int64(e[pad + i, line])
+    return tri * side - max(left, right) * m * m
+
+
+@njit(cache=True, nogil=True)
+def _nearest_ridge(e: np.ndarray, pad: int, n_pos: int, line: int, centre: int, reach: int,
+                   m: int, offset: int, side: int) -> tuple[int, int]:
+    """(response, position) of the strongest local maximum of the ridge response of one
+    line within `reach` of `centre` (response -1 without an inner maximum)."""
+    a = max(0, centre - reach)
+    b = min(n_pos - 1, centre + reach)
+    best, pos = -1, -1
+    prev = ridge_at(e, pad, line, a, m, offset, side)
+    here = ridge_at(e, pad, line, a + 1, m, offset, side) if a + 1 <= b else prev
+    for x in range(a + 1, b):
+        nxt = ridge_at(e, pad, line, x + 1, m, offset, side)
+        if here > best and here >= prev and here >= nxt:
+            best, pos = here, x
+        prev, here = here, nxt
+    return best, pos
+
+
+@njit(cache=True, nogil=True)
+def follow_stripe(e: np.ndarray, pad: int, n_pos: int, m: int, offset: int, side: int,
+                  lo: int, hi: int, strong: float, weak: float, max_jump: float,
+                  best: np.ndarray, best_pos: np.ndarray) -> None:
+    """Hysteresis along the stripe in the ridge: on a line whose best response is under
+    `strong` and not within max_jump of the stripe on the line before (then after), the
+    strongest ridge maximum within max_jump of the stripe replaces it when it reaches
+    `weak`. The stripe on such a line is weaker than something elsewhere on it."""
+    reach = int(max_jump)
+    linked = np.zeros(hi - lo, np.bool_)
+    for i in range(lo, hi):
+        linked[i - lo] = best[i] >= strong and best_pos[i] >= 0
+    for step in (1, -1):
+        start, stop = (lo + 1, hi) if step == 1 else (hi - 2, lo - 1)
+        for i in range(start, stop, step):
+            j = i - step
+            if linked[i - lo] or not linked[j - lo]:
+                continue
+            if best[i] >= weak and abs(best_pos[i] - best_pos[j]) <= max_jump:
+                linked[i - lo] = True
+                continue
+            value, pos = _nearest_ridge(e, pad, n_pos, i, best_pos[j], reach, m, offset,
+                                        side)
+            if value >= weak:
+                best[i] = value
+                best_pos[i] = pos
+                linked[i - lo] = True
+
+
 # ---------------------------------------------------------------------------------
 # Pass 3: subpixel estimators on a background-free profile g (float64) around index i0.
 # Each returns the offset from i0 (NaN on failure); `clipped` marks saturated samples.

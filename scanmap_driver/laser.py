@@ -22,7 +22,9 @@ keeping a strong red response that is absent in green and blue. Here, in four pa
    and red over 19, from the level crossings of its flanks up to 32 px away).
 4. Lines whose ridge is under the threshold but above the noise part of it are kept
    when a run of peaks on consecutive lines links them to the stripe (hysteresis along
-   the stripe); lone peaks without neighbours along the stripe are dropped.
+   the stripe); on such a line the ridge maximum near the stripe of the line before (or
+   after) is taken when something elsewhere on it responds more (`follow_stripe`, before
+   pass 3). Lone peaks without neighbours along the stripe are dropped.
 
 Method "auto" (the default), per frame: the bright method, unless its threshold is set
 by noise (the noise part, noise_factor x evidence noise, above min_threshold and not
@@ -340,6 +342,9 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
     flags[:lo] = lk.SKIPPED
     flags[hi:] = lk.SKIPPED
     line_stride, pos_stride = (width, 1) if by_rows else (1, width)
+    if thr > noise_thr:
+        lk.follow_stripe(e, pad, n_pos, m, offset, side, lo, hi, thr * unit, thr_int,
+                         2.0 * fwhm, best, best_pos)
     lk.fit_kernel(flat, e, pad, n_pos, line_stride, pos_stride, lo, hi, best, best_pos, count,
                thr_int, 1.0 / unit, m, offset, side, half, ESTIMATORS.index(s.estimator),
                FIT_CHANNELS.index(s.fit_channel), float(s.saturation),

@@ -16,7 +16,7 @@ from scanmap_driver import _laser_kernels as lk
 from scanmap_driver import laser
 from scanmap_driver.errors import ScanError
 from scanmap_driver.laser import Flag, LaserConfig, extract_stripe
-from scanmap_driver.sim.synthetic_frames import saturated_core_frame, stripe_frame
+from scanmap_driver.sim.synthetic_frames import saturated_core_frame, stripe_frame, stripe_path
 from tests.conftest import real_data
 
 # ---------------------------------------------------------------- numpy references
@@ -125,6 +125,9 @@ def test_ridge_kernel_matches_numpy(windows):
     assert np.array_equal(best, ref.max(0))
     assert np.array_equal(pos, ref.argmax(0))
     assert np.array_equal(count, runs_reference(ref, hi, hi // 2))
+    for line in (0, 17, 36):
+        ours = [lk.ridge_at(e, pad, line, x, m, offset, side) for x in range(n_pos)]
+        assert np.array_equal(ours, ref[:, line])
 
 
 def isolated_reference(peak: np.ndarray, support: int, jump: float) -> np.ndarray:
@@ -239,6 +242,42 @@ def test_keep_continued_example():
     # weak peaks linked to the strong one at line 2 stay; the rest are removed
     np.testing.assert_array_equal(np.isfinite(peak), [0, 1, 1, 1, 0, 0, 0, 0, 0, 0])
     assert np.all(flags[[4, 5, 7, 8, 9]] == Flag.NONE_FOUND)
+
+
+def test_follow_stripe_example():
+    """Line 2's best ridge is a distractor 20 px off (under the strong level); the ridge
+    maximum near the stripe on line 1 replaces it. Line 4 has nothing near: unchanged."""
+    pad, n_pos, m, offset, side = 8, 60, 2, 2, 4
+    e = np.zeros((n_pos + 2 * pad, 6), np.int16)
+    stripe = [20, 20, 21, 21, 40, 21]
+    for line, x in enumerate(stripe):
+        e[pad + x - 1:pad + x + 2, line] = (60, 100, 60) if line != 2 else (15, 25, 15)
+    e[pad + 40:pad + 43, 2] = (20, 40, 20)
+    ref = ridge_reference(e, pad, m, offset, side)
+    best = ref.max(0).astype(np.int32)
+    pos = ref.argmax(0).astype(np.int32)
+    assert pos[2] == 41
+    strong, weak = 0.8 * ref[20, 0], 0.5 * ref[21, 2]
+    lk.follow_stripe(e, pad, n_pos, m, offset, side, 0, 6, strong, weak, 4.0, best, pos)
+    assert pos[2] == 21 and best[2] == ref[21, 2]
+    assert pos[4] == 40  # strong: kept, though it jumps
+
+
+def test_weak_stripe_beside_a_stronger_distractor_is_kept():
+    """Lines where the stripe fades (amplitude 40) while a red dot 150 px away responds
+    more, though under the threshold: the stripe is followed into them."""
+    truth = stripe_path(np.random.default_rng(30), 640, 480)
+    strong, _ = stripe_frame(np.random.default_rng(31), truth=truth, amplitude=230.0)
+    weak, _ = stripe_frame(np.random.default_rng(31), truth=truth, amplitude=40.0)
+    lines = slice(300, 312)
+    image = strong.copy()
+    image[:, lines] = weak[:, lines]
+    dot = 44.0 * np.exp(-0.5 * ((np.arange(480)[:, None] - truth[None, lines] - 150) / 1.5)
+                        ** 2)
+    image[:, lines, 2] = np.clip(image[:, lines, 2] + dot, 0, 255).astype(np.uint8)
+    result = extract_stripe(image)
+    assert np.all(result.contrast[lines] < result.threshold)  # weak lines
+    assert np.all(np.abs(result.peak[lines] - truth[lines]) < 0.5)
 
 
 def test_drop_isolated_example():
