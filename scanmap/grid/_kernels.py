@@ -92,6 +92,19 @@ def classify_points(points: np.ndarray, origins: np.ndarray, bounds: np.ndarray,
     return out
 
 
+@njit(cache=True, nogil=True)
+def usable_box(xy: np.ndarray, cls: np.ndarray) -> np.ndarray:
+    """(xmin, ymin, xmax, ymax) of the rows of xy (N, 2+) with cls == POINT_OK (NaN if none)."""
+    box = np.array([np.inf, np.inf, -np.inf, -np.inf])
+    for i in range(xy.shape[0]):
+        if cls[i] == POINT_OK:
+            box[0], box[1] = min(box[0], xy[i, 0]), min(box[1], xy[i, 1])
+            box[2], box[3] = max(box[2], xy[i, 0]), max(box[3], xy[i, 1])
+    if box[0] > box[2]:
+        box[:] = np.nan
+    return box
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _dda_setup(gx0: float, gy0: float, gx1: float, gy1: float):
     """Amanatides-Woo set-up in cell units: start cell, steps, next crossings, deltas, count."""
@@ -538,3 +551,27 @@ def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
                 out_f[y, x, k] = lev_f[off * levels + k]
                 out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS]
                 out_n[y, x, k, PASSES] = lev_n[off * levels + k, PASSES]
+
+
+@njit(cache=True, nogil=True)
+def frame_rays(points: np.ndarray, headings: np.ndarray, frames: np.ndarray,
+               poses: np.ndarray, head: np.ndarray, camera: np.ndarray,
+               out_points: np.ndarray, out_origins: np.ndarray) -> None:
+    """Points (N, 3) in base_link and their camera centres (the camera at `camera` in the
+    head mount, turned by each heading about z, then by the 4x4 `head` pose) carried to
+    map by the pose of each point's frame (poses (F, 4, 4))."""
+    for i in range(points.shape[0]):
+        c, s = np.cos(headings[i]), np.sin(headings[i])
+        mx = c * camera[0] - s * camera[1]
+        my = s * camera[0] + c * camera[1]
+        mz = camera[2]
+        f = frames[i]
+        bx = head[0, 0] * mx + head[0, 1] * my + head[0, 2] * mz + head[0, 3]
+        by = head[1, 0] * mx + head[1, 1] * my + head[1, 2] * mz + head[1, 3]
+        bz = head[2, 0] * mx + head[2, 1] * my + head[2, 2] * mz + head[2, 3]
+        px, py, pz = np.float64(points[i, 0]), np.float64(points[i, 1]), np.float64(points[i, 2])
+        for r in range(3):
+            out_points[i, r] = poses[f, r, 0] * px + poses[f, r, 1] * py \
+                + poses[f, r, 2] * pz + poses[f, r, 3]
+            out_origins[i, r] = poses[f, r, 0] * bx + poses[f, r, 1] * by \
+                + poses[f, r, 2] * bz + poses[f, r, 3]

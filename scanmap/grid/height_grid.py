@@ -337,9 +337,9 @@ class HeightGrid:
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
-            usable = origins[cls == gk.POINT_OK, :2]
-            if len(usable):
-                self._stood.append(tuple(0.5 * (usable.min(axis=0) + usable.max(axis=0))))
+            box = gk.usable_box(origins, cls)
+            if not np.isnan(box[0]):
+                self._stood.append(tuple(0.5 * (box[:2] + box[2:])))
         counts = np.bincount(cls, minlength=5)
         return InsertStats(inserted=hits, nonfinite=int(counts[gk.POINT_NONFINITE]),
                            outside_window=int(counts[gk.POINT_OUTSIDE_WINDOW]),

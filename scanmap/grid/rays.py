@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from scanmap.grid import _kernels as gk
 from scanmap_driver.errors import ScanError
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel
@@ -36,15 +37,17 @@ def scan_rays(scan: Scan, model: ScannerModel,
     if pose.shape[-2:] != (4, 4) or pose.ndim not in (2, 3) or not np.isfinite(pose).all():
         raise ScanError(f"scan_rays: pose must be a finite 4x4 or (F, 4, 4) array, got shape "
                         f"{pose.shape}")
-    centres = camera_centres(model, scan.heading)
     if pose.ndim == 2:
+        centres = camera_centres(model, scan.heading)
         return transform_points(pose, scan.points), transform_points(pose, centres)
     frames = scan.frame_index
     if len(frames) and not (0 <= frames.min() and frames.max() < len(pose)):
         raise ScanError(f"scan_rays: frame_index spans {frames.min()}..{frames.max()} but "
                         f"{len(pose)} frame poses were given")
-    per_point = pose[frames]
-    rotate = per_point[:, :3, :3]
-    shift = per_point[:, :3, 3]
-    return (np.einsum("nij,nj->ni", rotate, scan.points.astype(np.float64)) + shift,
-            np.einsum("nij,nj->ni", rotate, centres) + shift)
+    points, origins = np.empty((len(frames), 3)), np.empty((len(frames), 3))
+    gk.frame_rays(np.ascontiguousarray(scan.points), np.ascontiguousarray(scan.heading,
+                                                                          np.float64),
+                  np.ascontiguousarray(frames), np.ascontiguousarray(pose),
+                  np.ascontiguousarray(model.head_mount.pose, np.float64),
+                  np.array(model.camera_mount.position, np.float64), points, origins)
+    return points, origins

@@ -112,6 +112,67 @@ def floor_candidates(levels: np.ndarray, nlev: np.ndarray, thickness: float,
 
 
 @njit(cache=True, nogil=True)
+def plane_support(points: np.ndarray, anchors: np.ndarray, normals: np.ndarray,
+                  tolerance: float) -> np.ndarray:
+    """Per plane hypothesis (a point on it and its unit normal), how many points lie within
+    `tolerance` of it (RANSAC's score; `plane_support_reference` is the plain version)."""
+    out = np.zeros(normals.shape[0], np.int64)
+    for h in range(normals.shape[0]):
+        a0, a1, a2 = anchors[h, 0], anchors[h, 1], anchors[h, 2]
+        n0, n1, n2 = normals[h, 0], normals[h, 1], normals[h, 2]
+        offset = n0 * a0 + n1 * a1 + n2 * a2
+        count = 0
+        for i in range(points.shape[0]):
+            d = n0 * points[i, 0] + n1 * points[i, 1] + n2 * points[i, 2] - offset
+            if abs(d) <= tolerance:
+                count += 1
+        out[h] = count
+    return out
+
+
+def plane_support_reference(points: np.ndarray, anchors: np.ndarray, normals: np.ndarray,
+                            tolerance: float) -> np.ndarray:
+    """`plane_support` in numpy, for tests."""
+    distances = np.abs((points[None] - anchors[:, None]) @ normals[..., None])[..., 0]
+    return (distances <= tolerance).sum(axis=1)
+
+
+@njit(cache=True, nogil=True)
+def ring_heights(labels: np.ndarray, count: int, is_floor: np.ndarray,
+                 heights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest height of the floor cells 8-adjacent to each labelled patch
+    (index = label; +inf and -inf without any)."""
+    ny, nx = labels.shape
+    low = np.full(count + 1, np.inf)
+    high = np.full(count + 1, -np.inf)
+    for y in range(ny):
+        for x in range(nx):
+            if not is_floor[y, x]:
+                continue
+            h = heights[y, x]
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    label = labels[yy, xx]
+                    if label > 0:
+                        low[label] = min(low[label], h)
+                        high[label] = max(high[label], h)
+    return low, high
+
+
+def ring_heights_reference(labels: np.ndarray, count: int, is_floor: np.ndarray,
+                           heights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`ring_heights` in numpy and scipy, for tests."""
+    from scipy import ndimage
+
+    low, high = np.full(count + 1, np.inf), np.full(count + 1, -np.inf)
+    for label in range(1, count + 1):
+        ring = ndimage.binary_dilation(labels == label, np.ones((3, 3), bool)) & is_floor
+        if ring.any():
+            low[label], high[label] = heights[ring].min(), heights[ring].max()
+    return low, high
+
+
+@njit(cache=True, nogil=True)
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float) -> np.ndarray:
     """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step."""
     ny, nx = heights.shape

@@ -209,8 +209,9 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
         return None
     normals, anchors = normals[level], sample[ok][level, 0]
     subset = points[rng.integers(0, len(points), min(len(points), 4000))]
-    distances = np.abs((subset[None] - anchors[:, None]) @ normals[..., None])[..., 0]
-    best = int(np.argmax((distances <= params.plane_tolerance).sum(axis=1)))
+    support = nk.plane_support(np.ascontiguousarray(subset), np.ascontiguousarray(anchors),
+                               np.ascontiguousarray(normals), params.plane_tolerance)
+    best = int(np.argmax(support))
     normal, offset = normals[best], float(normals[best] @ anchors[best])
     for _ in range(2):  # refine on all inliers
         inliers = np.abs(points @ normal - offset) <= params.plane_tolerance
@@ -352,20 +353,19 @@ def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarra
     """Patches of cells without any hit, at most `size` cells on each side, inside floor
     (not touching the window's edge) whose heights around them differ by at most `step`,
     and showing no drop-off."""
-    out = np.zeros(is_floor.shape, bool)
-    labels, _ = ndimage.label(~is_floor, np.ones((3, 3), bool))
-    for index, box in enumerate(ndimage.find_objects(labels), start=1):
-        rows, cols = box
-        if (rows.stop - rows.start > size or cols.stop - cols.start > size
-                or rows.start == 0 or cols.start == 0 or rows.stop == is_floor.shape[0]
-                or cols.stop == is_floor.shape[1]):
-            continue
-        grown = (slice(rows.start - 1, rows.stop + 1), slice(cols.start - 1, cols.stop + 1))
-        patch = labels[grown] == index
-        if nlev[grown][patch].any() or drop[grown][patch].any():
-            continue
-        ring = ndimage.binary_dilation(patch, np.ones((3, 3), bool)) & ~patch
-        heights = floor_height[grown][ring]
-        if heights.max() - heights.min() <= step:
-            out[grown] |= patch
-    return out
+    ny, nx = is_floor.shape
+    labels, count = ndimage.label(~is_floor, np.ones((3, 3), bool))
+    if not count:
+        return np.zeros(is_floor.shape, bool)
+    ok = np.ones(count + 1, bool)
+    ok[0] = False
+    for index, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
+        ok[index] = (rows.stop - rows.start <= size and cols.stop - cols.start <= size
+                     and rows.start > 0 and cols.start > 0 and rows.stop < ny
+                     and cols.stop < nx)
+    ok[labels[(nlev > 0) | drop]] = False
+    # The ring of a patch: floor cells next to it (a patch is a whole component of the
+    # cells off the floor, so every neighbour outside it is floor)
+    low, high = nk.ring_heights(labels, count, is_floor, floor_height)
+    ok &= high - low <= step
+    return ok[labels]

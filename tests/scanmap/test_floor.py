@@ -7,10 +7,12 @@ from collections import deque
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.navigation import _kernels as nk
+from scanmap.navigation import floor as floor_module
 from scanmap.navigation.floor import (
     FREE,
     OBSTACLE,
@@ -44,6 +46,42 @@ def test_ransac_refuses_a_steep_plane():
     xy = rng.uniform(-1, 1, (500, 2))
     wall = np.column_stack([xy[:, 0], np.zeros(500), xy[:, 1] + 1])
     assert ransac_plane(wall, FloorConfig(), rng) is None
+
+
+def test_plane_support_matches_its_numpy_reference():
+    rng = np.random.default_rng(5)
+    points = rng.normal(0.0, 0.05, (700, 3))
+    anchors = points[rng.integers(0, 700, 40)]
+    normals = rng.normal(0.0, 1.0, (40, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    got = nk.plane_support(points, anchors, normals, 0.03)
+    assert (got == nk.plane_support_reference(points, anchors, normals, 0.03)).all()
+    assert got.min() < got.max() <= 700
+
+
+def test_small_holes_take_patches_inside_level_floor_only():
+    """A 2 x 2 patch inside level floor is a hole; the same beside a step, touching the
+    window's edge, larger than the size, holding a hit or a drop-off is not."""
+    floor = np.ones((12, 40), bool)
+    for x0 in (2, 10, 18, 26, 34):
+        floor[4:6, x0:x0 + 2] = False
+    floor[0:2, 0:2] = False  # at the edge
+    floor[8:11, 2:5] = False  # 3 x 3
+    heights = np.where(floor, 0.0, np.nan).astype(np.float32)
+    heights[:, 12:14] = 0.08  # a step beside the second patch
+    nlev = np.zeros(floor.shape, np.uint8)
+    nlev[4, 18] = 1  # a hit in the third
+    drop = np.zeros(floor.shape, bool)
+    drop[5, 27] = True  # a drop-off in the fourth
+    heights = np.where(floor, heights, np.nan).astype(np.float32)
+    holes = floor_module._small_holes(nlev, floor, heights, drop, 2, 0.05)
+    expected = np.zeros(floor.shape, bool)
+    expected[4:6, 2:4] = expected[4:6, 34:36] = True
+    assert (holes == expected).all()
+    low, high = nk.ring_heights(*ndimage.label(~floor, np.ones((3, 3), bool)), floor, heights)
+    ref = nk.ring_heights_reference(*ndimage.label(~floor, np.ones((3, 3), bool)), floor,
+                                    heights)
+    assert np.array_equal(low, ref[0]) and np.array_equal(high, ref[1])
 
 
 def test_floor_candidates_match_a_numpy_reference():

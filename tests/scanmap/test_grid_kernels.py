@@ -218,3 +218,38 @@ def test_absent_tiles_read_as_empty_and_never_updated():
     far = (slice(0, 10), slice(0, 10))
     assert (layers.nlev[far] == 0).all() and (layers.seen[far] == 0).all()
     assert np.isnan(layers.updated[far]).all()
+
+
+def test_frame_rays_match_an_einsum_reference():
+    """scan_rays with a pose per frame, against the per-point product of the pose, the head
+    mount and the camera turned by the heading."""
+    from scanmap.grid.rays import camera_centres, scan_rays
+    from scanmap_driver.scan import Scan
+    from scanmap_driver.scanner_model import reference_scanner
+    from scanmap_driver.transforms import make_pose, rot_z
+
+    rng = np.random.default_rng(8)
+    model = reference_scanner()
+    n, frames = 500, 7
+    poses = np.array([make_pose(rot_z(a), rng.normal(0, 2, 3))
+                      for a in rng.uniform(-3, 3, frames)])
+    frame = rng.integers(0, frames, n)
+    scan = Scan(points=rng.normal(0, 2, (n, 3)).astype(np.float32),
+                colors=np.zeros((n, 3)), heading=rng.uniform(-np.pi, np.pi, n),
+                frame_index=frame, time=np.sort(rng.uniform(0, 1, n)),
+                range_sigma=np.full(n, 0.005))
+    points, origins = scan_rays(scan, model, poses)
+    rotate, shift = poses[frame, :3, :3], poses[frame, :3, 3]
+    expected = np.einsum("nij,nj->ni", rotate, scan.points.astype(np.float64)) + shift
+    centres = np.einsum("nij,nj->ni", rotate, camera_centres(model, scan.heading)) + shift
+    assert np.allclose(points, expected, atol=1e-12) and np.allclose(origins, centres,
+                                                                     atol=1e-12)
+
+
+def test_usable_box_bounds_the_usable_rays_only():
+    rng = np.random.default_rng(9)
+    xy = rng.normal(0, 3, (300, 3))
+    cls = rng.integers(0, 3, 300).astype(np.uint8)
+    ok = xy[cls == gk.POINT_OK, :2]
+    assert np.array_equal(gk.usable_box(xy, cls), np.r_[ok.min(axis=0), ok.max(axis=0)])
+    assert np.isnan(gk.usable_box(xy, np.ones(300, np.uint8))).all()
