@@ -69,6 +69,11 @@ class LoopClosureConfig:
     odometry_sigma, odometry_yaw_sigma, loop_sigma, loop_yaw_sigma: floors (m, rad) of
       the edges' sigmas: ICP's covariance is too sure of itself.
     loop_kernel: Cauchy scale (sigmas) of loop edges in the optimisation.
+    max_loop_residual: a loop edge whose residual after an optimisation exceeds this
+      (sigmas; 3.4: the chi-square 99% bound of 3 degrees of freedom) in the graph
+      optimised without the kernel contradicts the rest of it: the worst is dropped and
+      the graph optimised again, until none does; then it is optimised with the kernel.
+      The kernel bounds a false loop's pull; this removes it.
     rings, sectors, descriptor_radius: the scan-context image (m).
     """
 
@@ -89,6 +94,7 @@ class LoopClosureConfig:
     loop_sigma: float = 0.05
     loop_yaw_sigma: float = 0.01
     loop_kernel: float = 3.0
+    max_loop_residual: float = 3.4
     rings: int = 20
     sectors: int = 60
     descriptor_radius: float = 10.0
@@ -123,6 +129,7 @@ class LoopCloser:
         self.registration = registration or RegistrationConfig()
         self.graph = PoseGraph()
         self.loops: list[Loop] = []
+        self.rejected: list[Loop] = []  # verified, then dropped as contradicting the graph
         self.optimise_seconds: list[float] = []
         self._travel: list[float] = []
         self._clouds: list[np.ndarray] = []  # per node: downsampled points in base_link
@@ -366,17 +373,33 @@ class LoopCloser:
 
     def _optimise(self) -> None:
         """Optimise the nodes processed so far (not those the caller added since: the
-        result must not depend on how far ahead the caller is) and publish the result."""
-        with self._lock:
-            n = len(self._clouds)
-            snapshot = PoseGraph()
-            snapshot.poses = self.graph.poses[:n]
-            snapshot.fixed = self.graph.fixed
-            snapshot.edges = [e for e in self.graph.edges if max(e.source, e.target) < n]
-            initial = self._estimates(n)
-        start = time.perf_counter()
-        optimised = snapshot.optimise(initial, self.config.loop_kernel)
-        self.optimise_seconds.append(time.perf_counter() - start)
+        result must not depend on how far ahead the caller is), drop loops that contradict
+        the result (`max_loop_residual`), and publish it."""
+        while True:
+            with self._lock:
+                n = len(self._clouds)
+                snapshot = PoseGraph()
+                snapshot.poses = self.graph.poses[:n]
+                snapshot.fixed = self.graph.fixed
+                snapshot.edges = [e for e in self.graph.edges if max(e.source, e.target) < n]
+                initial = self._estimates(n)
+            start = time.perf_counter()
+            loops = [e for e in snapshot.edges if e.loop]
+            # Judged without the kernel: from far off, the kernel would ignore a true loop
+            # that corrects a long drift, and its residual would stay large.
+            plain = snapshot.optimise(initial, np.inf) if loops else initial
+            residuals = [_residual(e, plain) for e in loops]
+            if not loops or max(residuals) <= self.config.max_loop_residual:
+                optimised = snapshot.optimise(initial, self.config.loop_kernel)
+                self.optimise_seconds.append(time.perf_counter() - start)
+                break
+            worst = loops[int(np.argmax(residuals))]
+            with self._lock:
+                self.graph.edges = [e for e in self.graph.edges if e is not worst]
+            found = [loop for loop in self.loops
+                     if (loop.candidate, loop.query) == (worst.source, worst.target)]
+            self.loops = [loop for loop in self.loops if loop not in found]
+            self.rejected.extend(found)
         with self._lock:
             self._optimised = optimised
             self._version += 1
@@ -395,3 +418,10 @@ class LoopCloser:
         out[:m] = self._optimised[:m]
         out[m:] = self._correction() @ out[m:]
         return out
+
+
+def _residual(edge: Edge, poses: np.ndarray) -> float:
+    """Whitened residual (sigmas) of `edge` at `poses`."""
+    error = np.array(pose_to_se2(invert_pose(edge.measurement) @ invert_pose(poses[edge.source])
+                                 @ poses[edge.target]))
+    return float(np.sqrt(max(error @ edge.information @ error, 0.0)))

@@ -77,7 +77,7 @@ class PoseGraph:
         initial: (N, 4, 4) start (default the nodes' poses); z, roll and pitch of each
         node are kept from it, and fixed nodes wholly (constants, not variables; an edge
         from one is a prior on the other node). loop_kernel: Cauchy scale of loop edges
-        (sigmas).
+        (sigmas; inf: none).
         """
         import gtsam
 
@@ -90,7 +90,7 @@ class PoseGraph:
         values = gtsam.Values()
         for i in range(fixed, len(self)):
             values.insert(i, gtsam.Pose2(*pose_to_se2(start[i])))
-        kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(loop_kernel)
+        kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(min(loop_kernel, 1e300))
         for edge in self.edges:
             source, target = edge.source, edge.target
             measurement = gtsam.Pose2(*pose_to_se2(edge.measurement))
@@ -102,7 +102,7 @@ class PoseGraph:
             if target < fixed:
                 continue  # between two fixed nodes: nothing to optimise
             noise = gtsam.noiseModel.Gaussian.Information(information)
-            if edge.loop:
+            if edge.loop and np.isfinite(loop_kernel):  # inf: Gaussian loop edges
                 noise = gtsam.noiseModel.Robust.Create(kernel, noise)
             if source < fixed:  # a fixed node is a constant: the edge is a prior
                 anchor = gtsam.Pose2(*pose_to_se2(start[source]))
