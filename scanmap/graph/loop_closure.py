@@ -19,8 +19,9 @@ candidate's neighbourhood: it must converge, match at least `min_fitness` of the
 with an inlier RMS below `max_rmse`, constrain every direction (a corridor cannot say
 where along it the robot is), and land within the same pose-uncertainty gate: two
 look-alike corridors metres apart are not one place. Accepted loops become robust edges
-(`PoseGraph`, Cauchy kernel) and the graph is optimised in the worker; `version` counts
-the optimisations, `corrected_poses` reads the newest result.
+(`PoseGraph`, Cauchy kernel) and the graph is optimised in the worker; a loop the rest
+of the graph contradicts is dropped (`max_loop_residual`, kept in `rejected`); `version`
+counts the optimisations, `corrected_poses` reads the newest result.
 """
 
 from __future__ import annotations
