@@ -17,7 +17,8 @@ second and commands a forward speed:
   diverged filter), or no scan has arrived yet.
 
 When the recording ends no new scans come, the data go stale and the robot stops. It
-prints what it did and the latency percentiles of the `nearest` calls.
+prints what it did and the latency percentiles of the `nearest` calls; the summary also
+holds how far known free space reached (`clearance`) in the polls that met unknown.
 """
 
 from __future__ import annotations
@@ -85,7 +86,7 @@ def scan_interval(source: ScanSource) -> float:
 
 def control_loop(mapper: Mapper, mapping, limits: Limits, linger: float) -> dict:
     """Poll at RATE until the mapping thread has ended `linger` s ago; returns a summary."""
-    latencies, reasons, transitions = [], Counter(), []
+    latencies, reasons, transitions, unknown_clearance = [], Counter(), [], []
     period, last_reason, ended_at = 1.0 / RATE, None, None
     start = next_tick = time.monotonic()
     while ended_at is None or time.monotonic() < ended_at + linger:
@@ -96,6 +97,8 @@ def control_loop(mapper: Mapper, mapping, limits: Limits, linger: float) -> dict
         latencies.append(time.perf_counter_ns() - before)
         speed, reason = speed_command(nearest, limits)
         reasons[reason] += 1
+        if nearest.status == QueryStatus.UNKNOWN and np.isfinite(nearest.age):
+            unknown_clearance.append(nearest.clearance)
         if reason != last_reason:
             transitions.append({"t": time.monotonic() - start, "reason": reason,
                                 "speed": speed, "status": nearest.status.name,
@@ -112,6 +115,8 @@ def control_loop(mapper: Mapper, mapping, limits: Limits, linger: float) -> dict
             "latency_us": {f"p{q}": float(np.percentile(micro, q)) for q in (50, 90, 99)}
             | {"max": float(micro.max())},
             "polls_by_reason": dict(reasons), "transitions": transitions,
+            "unknown_clearance_m": {f"p{q}": float(np.percentile(unknown_clearance, q))
+                                    for q in (10, 50, 90)} if unknown_clearance else {},
             "final": transitions[-1], "scans_mapped": mapping.mapped,
             "mapping_error": None if mapping.error is None else str(mapping.error)}
 
