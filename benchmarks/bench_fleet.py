@@ -1,13 +1,14 @@
 """The fleet (issue 20): many recordings reprocessed on a Dask LocalCluster against the
 serial jobs, with the figures docs/fleet.md plans from.
 
-Simulates office recordings (4 of 3 scans; 2 of 1 in --quick), runs `process_recording`
-and `map_to_folder` on each in this process, then `run_fleet` on a LocalCluster of 1 and
-2 one-thread worker processes (after warm-up jobs that load the kernels in the
-workers). Rows give the wall time, the speed-up over serial, the efficiency (speed-up per
-worker) and whether every output array equals the serial one; the planning rows give the
-MJPG bytes per frame, the process CPU time per frame, the workers' peak RSS and the
-scheduler's rate on trivial tasks. On a shared machine the figures move with the load
+Simulates office recordings (4 of 3 scans; in --quick 2 of 1, the second a copy of the
+first), runs `process_recording` and `map_to_folder` on each in this process, then
+`run_fleet` on a LocalCluster of 1 (not in --quick) and 2 one-thread worker processes
+(after warm-up jobs that load the kernels in the workers). Rows give the wall time, the
+speed-up over serial, the efficiency (speed-up per worker) and whether every output
+array equals the serial one; the planning rows give the MJPG bytes per frame, the
+process CPU time per frame, the workers' peak RSS and the scheduler's rate on trivial
+tasks (a tenth of them in --quick). On a shared machine the figures move with the load
 (the load average is in each row).
 """
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import tempfile
 import time
 from collections.abc import Callable
@@ -36,11 +38,17 @@ SERIAL: dict[str, Callable[[Path, Path], object]] = {"process": process_recordin
 TRIVIAL_TASKS = 2000
 
 
-def _recordings(scratch: Path, count: int, scans: int) -> list[Path]:
+def _recordings(scratch: Path, count: int, scans: int, copies: bool = False) -> list[Path]:
+    """`count` office recordings of `scans` scans, each its own seed; with `copies`, one
+    simulated and the others copies of it (as much work to process, a quarter of the time
+    to make)."""
     paths = [scratch / "recordings" / f"office{seed}" for seed in range(count)]
     for seed, path in enumerate(paths):
-        simulate_recording(builtin_scene("office"), path, reference_scanner(), seed=seed,
-                           scans=scans)
+        if copies and seed:
+            shutil.copytree(paths[0], path)
+        else:
+            simulate_recording(builtin_scene("office"), path, reference_scanner(), seed=seed,
+                               scans=scans)
     return paths
 
 
@@ -73,11 +81,11 @@ def _serial(job: str, recordings: list[Path], out: Path) -> tuple[float, float]:
     return time.perf_counter() - start, time.process_time() - cpu
 
 
-def _scheduler_rate(client) -> float:
+def _scheduler_rate(client, tasks: int = TRIVIAL_TASKS) -> float:
     """Trivial tasks per second through the scheduler, submit to gather."""
     start = time.perf_counter()
-    client.gather(client.map(abs, range(TRIVIAL_TASKS), pure=False))
-    return TRIVIAL_TASKS / (time.perf_counter() - start)
+    client.gather(client.map(abs, range(tasks), pure=False))
+    return tasks / (time.perf_counter() - start)
 
 
 def run(quick: bool = False) -> list[dict]:
@@ -85,7 +93,7 @@ def run(quick: bool = False) -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         scratch = Path(folder)
-        recordings = _recordings(scratch, *((2, 1) if quick else (4, 3)))
+        recordings = _recordings(scratch, *((2, 1, True) if quick else (4, 3)))
         frames = sum(_frames(path) for path in recordings)
         video = sum(p.stat().st_size for path in recordings for p in path.glob("*.avi"))
         serial = {job: _serial(job, recordings, scratch / f"serial-{job}") for job in SERIAL}
@@ -95,7 +103,7 @@ def run(quick: bool = False) -> list[dict]:
                          "settings": settings, "median_s": wall, "cpu_s": cpu,
                          "cpu_s_per_frame": cpu / frames, "load": os.getloadavg()[0],
                          "peers": {}})
-        for workers in (1, 2):
+        for workers in (2,) if quick else (1, 2):
             with connect(f"local:{workers}") as client:
                 for job in SERIAL:  # load the kernels in the workers
                     run_fleet(client, job, recordings[:2], scratch / f"warm-up-{job}{workers}")
@@ -115,7 +123,7 @@ def run(quick: bool = False) -> list[dict]:
                         "efficiency": speedup / workers, "outputs_equal": same,
                         "load": os.getloadavg()[0], "peers": {}})
                 rss = max(client.run(_peak_rss).values())
-                rate = _scheduler_rate(client)
+                rate = _scheduler_rate(client, TRIVIAL_TASKS // (10 if quick else 1))
         rows.append({"stage": "fleet planning", "method": "figures for docs/fleet.md",
                      "settings": f"{video / frames / 1e3:.1f} kB per MJPG frame, "
                                  f"{frames / serial['process'][1]:.1f} frames/s per core "

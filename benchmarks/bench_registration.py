@@ -471,12 +471,13 @@ def run(quick: bool = False, only: str | None = None) -> list[dict]:
     if not quick:
         builders |= {"rendered-office": partial(rendered, "office", 6),
                      "rendered-corridor": partial(rendered, "corridor", 8)}
-    rows = []
+    rows, corridor = [], None
     if only is None or only in "timing":
-        rows.append(timing_20k(builders["sim-corridor"](), quick))
+        corridor = builders["sim-corridor"]()
+        rows.append(timing_20k(corridor, quick))
     for key, build in builders.items():
         if only is None or only in key:
-            rows += compare(build())
+            rows += compare(corridor if key == "sim-corridor" and corridor else build())
     return rows
 
 

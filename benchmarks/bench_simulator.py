@@ -146,7 +146,7 @@ def open3d_cast(vertices: np.ndarray, triangles: np.ndarray, rays: np.ndarray,
 
 def _recording_row(model, quick: bool, workers: int) -> dict:
     """The whole recording; CPU time counts the worker processes too."""
-    scans = 2 if quick else 20
+    scans = 1 if quick else 20
     scene = builtin_scene("corridor")
     folder = Path(tempfile.mkdtemp(prefix="bench_sim_"))
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
