@@ -59,8 +59,8 @@ from scanmap_driver.transforms import invert_pose, se2_to_pose
 REAL = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "real", "carmen")
 EXTRUDE_HEIGHTS = (0.0, 0.1, 0.2, 0.3, 0.4)
 LOGS = ("intel", "aces", "acapulco", "belgioioso", "edmonton", "fhw", "freiburg-101")
-QUICK_SCANS = 60  # scans per real log in the quick run (about 60 m each)
-QUICK_LOGS = ("intel", "aces", "acapulco")  # the quick run: 180 and 181 beams, < 3 min
+QUICK_SCANS = 40  # scans per real log in the quick run (about 40 m each)
+QUICK_LOGS = ("intel", "aces", "acapulco")  # the quick run: 180 and 181 beams
 
 
 @dataclass
@@ -464,8 +464,8 @@ def run(quick: bool = False, only: str | None = None) -> list[dict]:
     keys: sim-corridor, sim-office, real-<log> for each of `LOGS`, rendered-office,
     rendered-corridor); the 20,000-point timing row comes with "timing" or no filter.
     """
-    builders = {"sim-corridor": partial(simulated, "corridor", 20 if quick else None),
-                "sim-office": partial(simulated, "office", 10 if quick else None)}
+    builders = {"sim-corridor": partial(simulated, "corridor", 13 if quick else None),
+                "sim-office": partial(simulated, "office", 6 if quick else None)}
     builders |= {f"real-{name}": partial(carmen, name, QUICK_SCANS if quick else None)
                  for name in (QUICK_LOGS if quick else LOGS)}
     if not quick:
