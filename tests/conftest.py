@@ -10,6 +10,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# Timings belong to benchmarks/, not to pass/fail tests: on a shared machine the first
+# example of a property (imports, Numba's cache) can take seconds, so no deadline.
+settings.register_profile("scanmap", deadline=None)
+settings.load_profile("scanmap")
 
 REAL_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 
