@@ -127,6 +127,9 @@ def compare(seq: Sequence) -> dict:
     except PeerFailed as exc:  # a peer that fails is reported in its place
         peers["KISS-SLAM"] = {"failed": str(exc)}
     row["error"], row["error_unit"] = row["ate_m"], "m, ATE RMSE (SE(2)-aligned)"
+    for values in peers.values():
+        if "ate_m" in values:
+            values["error"] = values["ate_m"]
     row["peers"] = peers
     return row
 
