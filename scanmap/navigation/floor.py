@@ -28,18 +28,23 @@ nothing came back: black carpet, a hole nothing returned from - is never FREE, n
 cell too steep to be floor. The exceptions are known floor: the robot's footprint at the poses it
 scanned from (it stood there; FREE unless something occupies its band), the assumed
 `fallback_floor` of a 2-D laser, and a patch without any hit no larger than `max_hole`
-(0.3 m, each side) enclosed by floor whose heights differ by at most a step (a gap
-between the laser's samples). A real hole of max_hole or less still returns hits below
-the floor, or lets rays pass below it, so the drop-off rule catches it first.
+(0.3 m, each side) enclosed by floor whose heights differ by at most a step, or whose
+hits within two cells are all such floor (a gap between the laser's samples), away from
+any drop-off. A real hole of max_hole or less still returns hits below the floor, or lets
+rays pass below it, so the drop-off rule catches it first.
 
 Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known and not unlit (above), nothing
 occupies the band,
-rays have seen at least `min_coverage` (half) of the band's height bins free there, and
+rays have seen at least `min_coverage` (half) of the band's height bins free there (on
+known floor - a floor hit within a cell, or a gap - not beside a drop-off: there or
+within `coverage_reach`, one cell, since the laser's lines cross a 5 cm cell at a few
+heights only and its neighbours at others; an object hidden at the heights only the
+neighbours saw is narrower than a cell and was never lit), and
 no height it has not seen is suspect: occupied (within two height bins) in a
 neighbouring cell, or possibly under an overhanging board (a table top seen only at its
-rim); otherwise it is UNKNOWN. The footprint cells are FREE unless something occupies
-their band.
+rim); otherwise it is UNKNOWN. The footprint cells, observed floor or not, are FREE
+unless something occupies their band or may overhang them.
 
 Why the map of one scan is mostly UNKNOWN: a cell is seen free at the heights that the
 rays crossing it have there, and every ray of this scanner falls from the camera (1 m
@@ -110,6 +115,8 @@ class FloorConfig:
     only at its rim: this scanner's laser, 0.5 m up, never lights a top above it) are
     assumed to extend over cells that never saw those heights; overhang_thickness: the
     thickest level taken for such a board (a table top, a seat, a shelf).
+    coverage_reach: on known floor, band heights seen free this far (m) from a cell count
+    for its coverage (0: the cell alone); the cell itself must have seen one.
     slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over.
     drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
     without observed floor. max_hole: the largest patch without hits (m, each side of its
@@ -126,6 +133,7 @@ class FloorConfig:
     max_planes: int = 4
     fill_radius: float = 1.0
     min_coverage: float = 0.5
+    coverage_reach: float = 0.05
     overhang_reach: float = 0.6
     overhang_thickness: float = 0.1
     ransac_iterations: int = 200
@@ -280,7 +288,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     if fallback_floor is not None:  # the caller vouches for the floor there
         assumed = np.isnan(floor_height)
         floor_height[assumed] = fallback_floor
-    stood = _footprint_cells(layers, robot.radius) & ~is_floor
+    stood = _footprint_cells(layers, robot.radius)  # observed floor or not: it stood there
     # Below the lowest floor near the cell (a cell between two floors at a step is neither's)
     lowest = ndimage.minimum_filter(np.nan_to_num(floor_height, nan=np.inf), size=5)
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
@@ -301,19 +309,28 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     probed = _lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
         <= floor_height + params.floor_probe
     bare = ~ndimage.maximum_filter(layers.nlev > 0, size=3)
+    holes |= _lit_gaps(probed & bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
+                       floor_height, drop, round(params.max_hole / res), robot.step_height)
     unlit = (probed & bare) | steep
     unlit &= ~is_floor & ~stood & ~assumed & ~holes
     state = np.empty((ny, nx), np.uint8)
     points = np.empty((ny, nx, 2), np.float32)
     band_logodds = np.empty((ny, nx), np.float32)
     covered = np.zeros((ny, nx), np.bool_)
+    pool = round(params.coverage_reach / res)
     nk.classify_band(layers.levels, layers.nlev, layers.seen, floor_height,
                   robot.step_height, robot.height, layers.z_min, layers.mask_dz,
-                  params.min_coverage,
+                  params.min_coverage if pool == 0 else 0.0,
                   round(params.overhang_reach / res), params.overhang_thickness,
                   layers.origin[0], layers.origin[1], res, state, points, band_logodds, covered)
+    if pool:  # known floor off a drop-off's rim: the coverage over it and its neighbours
+        known = ndimage.binary_dilation(is_floor, np.ones((3, 3), bool)) | holes
+        known &= ~ndimage.binary_dilation(drop, np.ones((3, 3), bool))
+        seen = np.where(known, _pooled(layers.seen, pool), layers.seen)
+        state[(state == FREE) & (_band_coverage(seen, floor_height, robot, layers)
+                                 < params.min_coverage)] = UNKNOWN
     state[(state == FREE) & unlit] = UNKNOWN
-    state[stood & (state != OBSTACLE)] = FREE
+    state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
@@ -329,6 +346,61 @@ def _lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:
     low = seen & (~seen + np.uint64(1))  # the lowest set bit
     with np.errstate(divide="ignore"):
         return z_min + mask_dz * np.log2(low.astype(np.float64))
+
+
+def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
+              floor_height: np.ndarray, drop: np.ndarray, size: int,
+              step: float) -> np.ndarray:
+    """Patches of `bare` cells (no hit around them) at most `size` cells on each side, not
+    at the window's edge nor next to a drop-off, whose hits within two cells are all floor
+    with heights differing by at most `step`: gaps between the laser's samples."""
+    ny, nx = bare.shape
+    labels, _ = ndimage.label(bare, np.ones((3, 3), bool))
+    out = np.zeros((ny, nx), bool)
+    near_drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool))
+    for index, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
+        if (rows.stop - rows.start > size or cols.stop - cols.start > size or rows.start < 2
+                or cols.start < 2 or rows.stop > ny - 2 or cols.stop > nx - 2):
+            continue
+        y0, y1, x0, x1 = rows.start - 2, rows.stop + 2, cols.start - 2, cols.stop + 2
+        patch = labels[rows, cols] == index
+        if near_drop[rows, cols][patch].any():
+            continue
+        hits = nlev[y0:y1, x0:x1] > 0
+        floor = is_floor[y0:y1, x0:x1]
+        heights = floor_height[y0:y1, x0:x1][floor]
+        if floor.any() and not (hits & ~floor).any() and heights.max() - heights.min() <= step:
+            out[rows, cols] |= patch
+    return out
+
+
+def _pooled(seen: np.ndarray, reach: int) -> np.ndarray:
+    """The height bins seen free in each cell or a cell within `reach` cells of it."""
+    ny, nx = seen.shape
+    padded = np.pad(seen, reach)
+    out = seen.copy()
+    for dy in range(2 * reach + 1):
+        for dx in range(2 * reach + 1):
+            out |= padded[dy:dy + ny, dx:dx + nx]
+    return out
+
+
+def _band_coverage(seen: np.ndarray, floor_height: np.ndarray, robot: RobotShape,
+                   layers: CellLayers) -> np.ndarray:
+    """Share of the robot band's height bins (those some ray saw in the window) in `seen`."""
+    floor_height = floor_height.astype(np.float64)  # as the kernel adds the heights
+    with np.errstate(invalid="ignore"):
+        low = np.clip(np.floor((floor_height + robot.step_height - layers.z_min)
+                               / layers.mask_dz), 0, 63)
+        high = np.clip(np.floor((floor_height + robot.height - 1e-6 - layers.z_min)
+                                / layers.mask_dz), 0, 63)
+    low = np.nan_to_num(low, nan=63).astype(np.uint64)
+    high = np.nan_to_num(high, nan=0).astype(np.uint64)
+    one, full = np.uint64(1), np.uint64(0xFFFFFFFFFFFFFFFF)
+    top = np.where(high >= 63, full, (one << np.minimum(high + one, np.uint64(63))) - one)
+    band = top & ~((one << low) - one) & np.bitwise_or.reduce(layers.seen, axis=None)
+    count = np.bitwise_count(band)
+    return np.where(count > 0, np.bitwise_count(band & seen) / np.maximum(count, 1), 0.0)
 
 
 def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:

@@ -1,0 +1,87 @@
+"""Gaps between the laser's samples (issue 17 item 6): small bare patches inside consistent
+floor are floor, others not (closed forms); band coverage pooled over a cell's neighbours
+counts exactly the bins they saw, and without pooling gives the kernel's own rule."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.navigation import floor as floor_module
+from scanmap.navigation.floor import FloorConfig, RobotShape, segment
+
+STEP = 0.05
+
+
+def gap_scene(n: int = 20, gap: tuple[int, int, int, int] = (8, 10, 8, 10)):
+    """Floor hits everywhere (height 0) but a bare patch rows gap[0]:gap[1], cols gap[2]:gap[3]
+    and the ring of one cell around it (no hit there either)."""
+    y0, y1, x0, x1 = gap
+    nlev = np.ones((n, n), np.uint8)
+    nlev[y0 - 1:y1 + 1, x0 - 1:x1 + 1] = 0
+    is_floor = nlev > 0
+    bare = np.zeros((n, n), bool)
+    bare[y0:y1, x0:x1] = True
+    return bare, nlev, is_floor, np.zeros((n, n), np.float32), np.zeros((n, n), bool)
+
+
+def test_a_small_gap_in_level_floor_is_floor():
+    bare, nlev, is_floor, heights, drop = gap_scene()
+    assert (floor_module._lit_gaps(bare, nlev, is_floor, heights, drop, 6, STEP) == bare).all()
+
+
+@pytest.mark.parametrize("spoil", ["step", "obstacle_hit", "drop", "too_large", "edge"])
+def test_a_gap_is_not_floor_when_its_surroundings_are_not_consistent_floor(spoil):
+    gap = (8, 10, 8, 10) if spoil not in ("too_large", "edge") else \
+        (4, 12, 8, 10) if spoil == "too_large" else (1, 3, 8, 10)
+    bare, nlev, is_floor, heights, drop = gap_scene(gap=gap)
+    if spoil == "step":
+        heights[gap[1] + 1, gap[2]] = 2 * STEP  # a floor hit a step higher, two cells away
+    elif spoil == "obstacle_hit":
+        is_floor[gap[1] + 1, gap[2]] = False  # a hit there that is not floor
+    elif spoil == "drop":
+        drop[gap[0] - 1, gap[2]] = True
+    assert not floor_module._lit_gaps(bare, nlev, is_floor, heights, drop, 6, STEP).any()
+
+
+def test_pooled_seen_spreads_each_bin_to_the_neighbours_only():
+    seen = np.zeros((7, 7), np.uint64)
+    seen[3, 3] = np.uint64(1 << 20)
+    pooled = floor_module._pooled(seen, 1)
+    expected = np.zeros((7, 7), bool)
+    expected[2:5, 2:5] = True
+    assert ((pooled == np.uint64(1 << 20)) == expected).all()
+    assert (pooled[~expected] == 0).all()
+
+
+def test_band_coverage_counts_the_band_bins_seen():
+    grid = HeightGrid(GridConfig())
+    layers = grid.layers((0.0, 0.0, 0.15, 0.15))
+    robot = RobotShape()
+    lo = int(np.floor((robot.step_height - layers.z_min) / layers.mask_dz))
+    hi = int(np.floor((robot.height - 1e-6 - layers.z_min) / layers.mask_dz))
+    band = sum(1 << b for b in range(lo, hi + 1))
+    half = sum(1 << b for b in range(lo, lo + (hi - lo + 1) // 2))
+    layers = replace(layers, seen=np.full(layers.shape, band, np.uint64))
+    seen = np.full(layers.shape, half, np.uint64)
+    coverage = floor_module._band_coverage(seen, np.zeros(layers.shape, np.float32), robot,
+                                           layers)
+    assert coverage == pytest.approx(((hi - lo + 1) // 2) / (hi - lo + 1))
+
+
+def test_without_pooling_the_coverage_rule_is_the_kernels(monkeypatch):
+    grid = HeightGrid(GridConfig(extent=20.0))
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-2.5, 2.5, (4000, 2))
+    points = np.column_stack([xy, np.zeros(len(xy))])
+    for origin in ([0.0, 0.0, 1.0], [1.0, 0.5, 1.0]):
+        grid.insert(points, np.array(origin), 1.0)
+    layers = grid.layers((-2.0, -2.0, 2.0, 2.0))
+    kernel = segment(layers, params=FloorConfig(coverage_reach=0.0))
+    monkeypatch.setattr(floor_module, "_pooled", lambda seen, reach: seen)
+    numpy_rule = segment(layers)
+    assert (kernel.state == numpy_rule.state).all()
+    assert (kernel.state == floor_module.FREE).sum() > 100
