@@ -137,8 +137,9 @@ class CellLayers:
     float32 records (lo, hi, log-odds, mean hit x and y offset from the cell centre);
     counts: (ny, nx, K, 2) uint32 (hits, passes); nlev: levels in use; seen: observed
     height mask; updated: last update time (NaN where never updated). stood: (M, 2) x, y
-    of the sensor (the middle of each scan's ray origins) at the scans inserted since the
-    grid was made that lie in the window: floor the robot stood on (not kept in map files).
+    where the robot stood (each scan's path as `insert` was given it, else the middle of
+    its ray origins) during the scans inserted since the grid was made, inside the window:
+    floor the robot stood on (not kept in map files).
     """
 
     origin: tuple[float, float]
@@ -174,6 +175,18 @@ class CellLayers:
         return (used & (hi > low) & (lo < high)).any(axis=2)
 
 
+def _path(stood: np.ndarray, spacing: float) -> np.ndarray:
+    """The finite (x, y) rows of `stood`, each at least `spacing` from the last one kept,
+    and the last row."""
+    xy = np.asarray(stood, dtype=np.float64).reshape(len(stood), -1)[:, :2]
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    keep = []
+    for i, p in enumerate(xy):
+        if not keep or i == len(xy) - 1 or np.hypot(*(p - xy[keep[-1]])) >= spacing:
+            keep.append(i)
+    return xy[keep]
+
+
 class HeightGrid:
     """The 2.5D grid. Thread-safe: insert, copy and layers never interleave."""
 
@@ -188,7 +201,7 @@ class HeightGrid:
         self.stamp = math.nan  # time of the newest insertion
         self._window_origin: tuple[float, float] | None = None
         self._scan_times = [math.nan]  # time of each scan id; id 0 = never
-        self._stood: list[tuple[float, float]] = []  # sensor x, y per inserted scan
+        self._stood: list[tuple[float, float]] = []  # where the robot stood, per scan
         cells, levels = c.tile_cells ** 2, c.tile_cells ** 2 * c.levels
         self._lev_f = np.zeros((0, levels, gk.N_FLOAT_FIELDS), np.float32)
         self._lev_n = np.zeros((0, levels, gk.N_INT_FIELDS), np.uint32)
@@ -288,11 +301,13 @@ class HeightGrid:
                     self._release(slot)
 
     # -- insertion ---------------------------------------------------------------------
-    def insert(self, points: np.ndarray, origins: np.ndarray, stamp: float) -> InsertStats:
+    def insert(self, points: np.ndarray, origins: np.ndarray, stamp: float,
+               stood: np.ndarray | None = None) -> InsertStats:
         """Fuse one scan: points (N, 3) in map, ray origins (N, 3) or one (3,), time (s).
 
-        Non-finite rays are skipped; a point or origin beyond the configured extent
-        raises MapError before anything changes.
+        stood: (M, 2+) x, y where the robot stood during the scan (its path; default the
+        middle of the ray origins). Non-finite rays are skipped; a point or origin beyond
+        the configured extent raises MapError before anything changes.
         """
         points = np.ascontiguousarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 3:
@@ -337,9 +352,12 @@ class HeightGrid:
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
-            box = gk.usable_box(origins, cls)
-            if not np.isnan(box[0]):
-                self._stood.append(tuple(0.5 * (box[:2] + box[2:])))
+            if stood is not None:
+                self._stood.extend(map(tuple, _path(stood, 0.5 * c.resolution)))
+            else:
+                box = gk.usable_box(origins, cls)
+                if not np.isnan(box[0]):
+                    self._stood.append(tuple(0.5 * (box[:2] + box[2:])))
         counts = np.bincount(cls, minlength=5)
         return InsertStats(inserted=hits, nonfinite=int(counts[gk.POINT_NONFINITE]),
                            outside_window=int(counts[gk.POINT_OUTSIDE_WINDOW]),

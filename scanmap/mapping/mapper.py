@@ -198,7 +198,8 @@ class Mapper:
         c = self.config
         if c.grid.window is not None:
             self.grid.recenter(float(last[0, 3]), float(last[1, 3]))
-        stats = self.grid.insert(points, origins, float(scan.time.max()))
+        stats = self.grid.insert(points, origins, float(scan.time.max()),
+                                 stood=poses[..., :2, 3].reshape(-1, 2))  # its whole path
         self._position = (float(last[0, 3]), float(last[1, 3]))
         self._recent.append((points, scan.range_sigma))
         if self.loop_closer is not None:

@@ -39,3 +39,22 @@ def test_floor_under_the_robot_seen_only_from_afar_is_free_where_it_stood():
     assert seg.is_floor[under].all()
     assert (seg.state[under] == FREE).all()
     assert not (seg.state[(d > robot.radius + seg.resolution) & (d < 0.4)] == FREE).all()
+
+
+def test_the_footprint_is_swept_along_the_path_the_robot_took_during_a_scan():
+    grid = HeightGrid(GridConfig(extent=20.0))
+    grid.insert(floor_points((0.3, 0.0), (0.0, 0.6), 0.02), np.array([-2.0, 0.0, 1.0]), 1.0)
+    path = np.column_stack([np.linspace(0.0, 0.6, 61), np.zeros(61), np.ones(61)])
+    grid.insert(floor_points((0.3, 0.0), (1.7, 2.8), 0.03), np.array([0.3, 0.0, 1.0]), 2.0,
+                stood=path)
+    robot = RobotShape()
+    seg = segment(grid.layers((-1.0, -1.0, 1.6, 1.0)), robot)
+    x, y = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution, \
+        seg.origin[1] + (np.arange(seg.shape[0]) + 0.5) * seg.resolution
+    gx, gy = np.meshgrid(x, y)
+    along = np.clip(gx, 0.0, 0.6)  # distance to the segment from (0, 0) to (0.6, 0)
+    d = np.hypot(gx - along, gy)
+    swept = d <= robot.radius - 0.5 * seg.resolution
+    assert (seg.state[swept] == FREE).all()
+    assert (swept & (np.hypot(gx - 0.3, gy) > robot.radius + seg.resolution)).sum() > 20
+    assert not (seg.state[(d > robot.radius + seg.resolution) & (d < 0.4)] == FREE).all()
