@@ -326,9 +326,10 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     if pool:  # known floor off a drop-off's rim: the coverage over it and its neighbours
         known = ndimage.binary_dilation(is_floor, np.ones((3, 3), bool)) | holes
         known &= ~ndimage.binary_dilation(drop, np.ones((3, 3), bool))
-        seen = np.where(known, _pooled(layers.seen, pool), layers.seen)
-        state[(state == FREE) & (_band_coverage(seen, floor_height, robot, layers)
-                                 < params.min_coverage)] = UNKNOWN
+        free = state == FREE
+        seen = np.where(known, _pooled(layers.seen, pool), layers.seen)[free]
+        short = _band_coverage(seen, floor_height[free], robot, layers) < params.min_coverage
+        state[np.nonzero(free)[0][short], np.nonzero(free)[1][short]] = UNKNOWN
     state[(state == FREE) & unlit] = UNKNOWN
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
