@@ -176,7 +176,7 @@ def frame_stripe_width(e: np.ndarray, pad: int, n_pos: int, noise_factor: float)
     when the lines agree within WIDTH_RATIO between the quartiles (a stripe's width varies
     with the surface and the saturation; noise and objects scatter over an order of
     magnitude) and the typical ridge response at that width (75th percentile over the
-    sampled lines) is `noise_factor` times the scene's variation there at the filter's side
+    sampled lines) is `noise_factor` times the scene's variation at the filter's side
     offset (a smooth texture varies as much at that scale: no stripe). Else, or when the
     measure is within WIDTH_TOLERANCE of it, DEFAULT_WIDTH: the filter holds such widths,
     and MJPG's halved chroma widens the red excess a little."""
@@ -192,7 +192,7 @@ def frame_stripe_width(e: np.ndarray, pad: int, n_pos: int, noise_factor: float)
     lk.ridge_kernel(sampled, n_pos, pad, m, offset, side, 2**30, 2**30, best, best_pos, count)
     rank = (3 * (n - 1)) // 4
     typical = float(np.partition(best, rank)[rank]) / (m * m * side)
-    scene = lk.evidence_noise(sampled, pad, n_pos, 4, offset)
+    scene = lk.evidence_noise(e, pad, n_pos, 4, offset)
     return fwhm if typical >= noise_factor * scene else DEFAULT_WIDTH
 
 
