@@ -65,18 +65,18 @@ def evidence_kernel(flat: np.ndarray, height: int, width: int, by_rows: bool, da
 
 
 @njit(cache=True, nogil=True)
-def evidence_noise(e: np.ndarray, pad: int, n_pos: int, step: int, lag: int) -> float:
-    """Mean |difference| between evidence samples `lag` apart along the lines.
+def evidence_noise(e: np.ndarray, pad: int, n_pos: int, step: int) -> float:
+    """Mean |difference| between neighbouring evidence samples along the lines.
 
     Sampled every `step` positions; the laser covers a few pixels per line, so this
-    measures the scene's texture and noise at that scale, which a ridge must clear.
+    measures the scene's texture and noise, which the ridge threshold must clear.
     """
     n_lines = e.shape[1]
     total = 0
     count = 0
-    for p in range(0, n_pos - lag, step):
+    for p in range(0, n_pos - 1, step):
         a = e[pad + p]
-        b = e[pad + p + lag]
+        b = e[pad + p + 1]
         acc = 0
         for u in range(n_lines):
             d = np.int32(a[u]) - np.int32(b[u])

@@ -154,7 +154,7 @@ class LaserConfig:
 MIN_WIDTH, DEFAULT_WIDTH, MAX_WIDTH = 1.0, 3.5, 10.0  # stripe FWHM (px)
 WIDTH_SAMPLE_STEP = 8  # the stripe width is measured on every 8th line
 WIDTH_TOLERANCE = 1.5  # a measured width within this factor of DEFAULT_WIDTH keeps it
-WIDTH_RATIO = 2.0  # largest ratio of the lines' upper to lower quartile width
+WIDTH_SPREAD = 0.25  # largest interquartile range of the lines' widths, relative
 STATISTICS_STEP = 4  # the frame's red statistics and eq. 1 passes on every 4th line
 DARK_PASSES = MAX_WIDTH  # most eq. 1 pixels per line of a dark room: the laser's alone
 
@@ -169,31 +169,22 @@ def filter_windows(fwhm: float) -> tuple[int, int, int, int]:
     return m, offset, width, fit
 
 
-def frame_stripe_width(e: np.ndarray, pad: int, n_pos: int, noise_factor: float) -> float:
+def frame_stripe_width(e: np.ndarray, pad: int, n_pos: int) -> float:
     """The stripe's width measured on the evidence plane: the median over sampled lines of
     the width of each line's strongest evidence (see `_laser_kernels.evidence_widths`),
-    within MIN_WIDTH..MAX_WIDTH. The stripe crosses most lines: the median is its width
-    when the lines agree within WIDTH_RATIO between the quartiles (a stripe's width varies
-    with the surface and the saturation; noise and objects scatter over an order of
-    magnitude) and the typical ridge response at that width (75th percentile over the
-    sampled lines) is `noise_factor` times the scene's variation at the filter's side
-    offset (a smooth texture varies as much at that scale: no stripe). Else, or when the
-    measure is within WIDTH_TOLERANCE of it, DEFAULT_WIDTH: the filter holds such widths,
-    and MJPG's halved chroma widens the red excess a little."""
+    within MIN_WIDTH..MAX_WIDTH. DEFAULT_WIDTH when no line has a peak, when the lines
+    disagree (interquartile range above WIDTH_SPREAD of the median: noise and objects, not
+    one stripe), or when the measure is within WIDTH_TOLERANCE of it: the filter holds
+    such widths, and MJPG's halved chroma widens the red excess a little, so only a stripe
+    that clearly misfits resizes it. The stripe crosses most lines: the median is its
+    width."""
     q25, measured, q75 = lk.quartiles(lk.evidence_widths(e, pad, n_pos, WIDTH_SAMPLE_STEP))
-    if (not math.isfinite(measured) or q75 > WIDTH_RATIO * q25
+    if not math.isfinite(measured):
+        return DEFAULT_WIDTH
+    if (q75 - q25 > WIDTH_SPREAD * measured
             or DEFAULT_WIDTH / WIDTH_TOLERANCE <= measured <= DEFAULT_WIDTH * WIDTH_TOLERANCE):
         return DEFAULT_WIDTH
-    fwhm = float(np.clip(measured, MIN_WIDTH, MAX_WIDTH))
-    m, offset, side, _ = filter_windows(fwhm)
-    sampled = np.ascontiguousarray(e[:, ::WIDTH_SAMPLE_STEP])
-    n = sampled.shape[1]
-    best, best_pos, count = (np.empty(n, np.int32) for _ in range(3))
-    lk.ridge_kernel(sampled, n_pos, pad, m, offset, side, 2**30, 2**30, best, best_pos, count)
-    rank = (3 * (n - 1)) // 4
-    typical = float(np.partition(best, rank)[rank]) / (m * m * side)
-    scene = lk.evidence_noise(e, pad, n_pos, 4, offset)
-    return fwhm if typical >= noise_factor * scene else DEFAULT_WIDTH
+    return float(np.clip(measured, MIN_WIDTH, MAX_WIDTH))
 
 
 @dataclass(frozen=True)
@@ -292,10 +283,9 @@ def _ridges(flat: np.ndarray, height: int, width: int, by_rows: bool, dark: bool
     e[pad + n_pos:] = 0
     lk.evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
                        np.uint8(s.saturation), pad, e)
-    fwhm = (frame_stripe_width(e, pad, n_pos, s.noise_factor) if s.stripe_width is None
-            else s.stripe_width)
+    fwhm = frame_stripe_width(e, pad, n_pos) if s.stripe_width is None else s.stripe_width
     m, offset, side, _ = filter_windows(fwhm)
-    noise = lk.evidence_noise(e, pad, n_pos, 4, 1)
+    noise = lk.evidence_noise(e, pad, n_pos, 4)
     noise_thr = (max(s.min_threshold, s.noise_factor * noise) if s.threshold == "auto"
                  else float(s.threshold))
     unit = m * m * side

@@ -187,18 +187,6 @@ def evidence_widths_reference(e: np.ndarray, pad: int, n_pos: int, step: int) ->
     return np.array(out)
 
 
-@pytest.mark.parametrize("lag", [1, 5])
-def test_evidence_noise_matches_numpy(lag):
-    rng = np.random.default_rng(9)
-    pad, n_pos = 6, 50
-    e = np.zeros((n_pos + 2 * pad, 23), np.int16)
-    e[pad:-pad] = rng.integers(-255, 256, (n_pos, 23))
-    core = e[pad:pad + n_pos].astype(float)
-    starts = np.arange(0, n_pos - lag, 4)
-    expected = np.abs(core[starts] - core[starts + lag]).mean()
-    assert lk.evidence_noise(e, pad, n_pos, 4, lag) == pytest.approx(expected, rel=1e-12)
-
-
 def test_evidence_widths_and_quartiles_match_numpy():
     image, _ = stripe_frame(np.random.default_rng(8), height=120, width=90, sigma=2.0)
     pad = 6
@@ -554,16 +542,6 @@ def test_uniform_frames_give_no_stripe(bgr):
         assert np.all(result.flags & Flag.NONE_FOUND)
 
 
-@pytest.mark.parametrize("seed", range(100, 104))
-def test_strongly_coloured_bright_scene_without_laser_keeps_the_default_width(seed):
-    """Red-excess blobs of a coloured texture agree in width like a stripe (quartiles
-    within 2x, ~10 px) but vary as much at that scale as they respond: no wide filter,
-    which would take 12-15 % of the lines for a stripe."""
-    image, _ = stripe_frame(np.random.default_rng(seed), amplitude=0.0, level=200.0,
-                            colourful=0.4)
-    assert extract_stripe(image).found.mean() < 0.03
-
-
 def test_noisy_red_wall_gives_no_stripe():
     rng = np.random.default_rng(22)
     wall = np.clip(rng.normal((30, 30, 200), 4, (480, 640, 3)), 0, 255).astype(np.uint8)
@@ -616,17 +594,14 @@ def difference_agreement(on: np.ndarray, off: np.ndarray, result) -> tuple[np.nd
     return stripe_rows, agree
 
 
-@pytest.mark.parametrize("stripe_width", [8.0, None])
-def test_real_laser_pair_single_frame_agrees_with_difference_and_ignores_cube(stripe_width):
-    """Given the width, or measured on the frame (a stripe 8-16 px wide at half height
-    along the bust, wider where clipped: 10 px)."""
+def test_real_laser_pair_single_frame_agrees_with_difference_and_ignores_cube():
     folder = real_data(f"{REAL}/3.1_laser_segmentation")
     on = cv2.imread(str(folder / "laser.png"))
     off = cv2.imread(str(folder / "laser_background.png"))
-    result = extract_stripe(on, LaserConfig(axis="rows", stripe_width=stripe_width))
+    result = extract_stripe(on, LaserConfig(axis="rows", stripe_width=8.0))
     stripe_rows, agree = difference_agreement(on, off, result)
     assert stripe_rows.sum() > 1000
-    assert agree[stripe_rows].mean() > 0.98  # measured 0.994 (8 px), 0.987 (measured)
+    assert agree[stripe_rows].mean() > 0.98  # measured 0.992
     # the Rubik's cube's red faces, located in the laser-off frame: red excess left of the
     # bust, above the turntable's red rim
     excess = off[:, :, 2].astype(int) - off[:, :, :2].max(2)
