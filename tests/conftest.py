@@ -13,8 +13,10 @@ import pytest
 from hypothesis import settings
 
 # Timings belong to benchmarks/, not to pass/fail tests: on a shared machine the first
-# example of a property (imports, Numba's cache) can take seconds, so no deadline.
-settings.register_profile("scanmap", deadline=None)
+# example of a property (imports, Numba's cache) can take seconds, so no deadline. The
+# examples are derived from each test's name, so every run (CI's too) draws the same ones
+# and a result is reproducible.
+settings.register_profile("scanmap", deadline=None, derandomize=True)
 settings.load_profile("scanmap")
 
 REAL_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
