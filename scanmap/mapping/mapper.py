@@ -46,7 +46,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from scanmap.graph import LoopCloser
-from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import GridConfig, HeightGrid, InsertStats
 from scanmap.grid.rays import scan_rays
 from scanmap.io.trajectory import Trajectory
@@ -409,36 +408,11 @@ def rebuild_grid(config: GridConfig, poses: np.ndarray,
                                                                           "base map")
     if config.window is not None:
         grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
-    _reserve_tiles(grid, poses, contributions)
+    grid.reserve((transform_points(pose, kept[0]), transform_points(pose, kept[1]))
+                 for pose, kept in zip(poses, contributions, strict=True) if kept is not None)
     for pose, kept in zip(poses, contributions, strict=True):
         _insert_kept(grid, pose, kept)
     return grid
-
-
-def _reserve_tiles(grid: HeightGrid, poses: np.ndarray,
-                   contributions: list[tuple[np.ndarray, np.ndarray, float] | None]) -> None:
-    """Allocate at once every tile the kept rays cross, as `HeightGrid.insert` would scan
-    by scan (growing its pools by doubling, each time copying them: half a rebuild's
-    time). Rays `insert` refuses are left to it."""
-    c = grid.config
-    span = c.corner + c.tiles_per_side * c.tile_size
-    bounds = np.array([c.corner, c.corner, span, span])
-    window = grid._window_bounds()
-    index = grid._tile_index.copy()  # collect_missing_tiles marks the tiles it lists
-    buffer = np.empty((4096, 2), np.int64)
-    tiles = [np.zeros((0, 2), np.int64)]
-    for pose, kept in zip(poses, contributions, strict=True):
-        if kept is None:
-            continue
-        points = np.ascontiguousarray(transform_points(pose, kept[0]), np.float64)
-        origins = np.ascontiguousarray(transform_points(pose, kept[1]), np.float64)
-        cls = gk.classify_points(points, origins, bounds, window, c.max_range)
-        count = -1
-        while count < 0:
-            count = gk.collect_missing_tiles(points, origins, cls, index, c.resolution,
-                                             c.tile_cells, c.corner, c.corner, buffer)
-            tiles.append(buffer[:count].copy() if count >= 0 else buffer.copy())
-    grid._allocate(np.concatenate(tiles))
 
 
 def _insert_kept(grid: HeightGrid, pose: np.ndarray,
