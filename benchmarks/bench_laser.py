@@ -5,8 +5,9 @@ MJPG decoding of the frame apart. Truth: synthetic frames with exact stripe cent
 forward-rendered disk frames (scanmap_driver/sim/synthetic_frames.py); the real
 laser-on/laser-off pairs when ../shared/data/real is present.
 
-Peer: `simple_peak`, the usual simple detector (each channel Gaussian-smoothed, sigma
-1.2 px; score R - (G+B)/2; argmax per line; 3-point Gaussian on the score).
+Peer: `simple_peak`, the usual simple detector (each channel Gaussian-smoothed in 2D,
+sigma 1.2 px, so across the lines too; score R - (G+B)/2; argmax per line; 3-point
+Gaussian on the score).
 
 Real flat board (`flat_board`; 3DScanScience 3.2, two laser lines on a chessboard): a
 plane's laser line is straight once the lens is undone. The measure, the same for both
