@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from scanmap.registration.planes import LINE, PLANE, accumulate, fit_voxel, pool_neighbours
+from scanmap.registration.planes import LINE, PLANE, accumulate, fit_voxel, pool_shape
 from scanmap.registration.voxel_hash import (
     COORD_LIMIT,
     fill_table,
@@ -174,8 +174,9 @@ def _refresh_planes(touched, voxel, max_count, min_points, flatness, scans_2d, t
     pooled_squares = np.empty(6)
     for slot in touched:
         ix, iy, iz = key_coords(voxel_keys[slot])
-        n, pooled_noise = pool_neighbours(ix, iy, iz, voxel, table_keys, table_values, counts,
-                                          sums, squares, noise, pooled_sums, pooled_squares)
+        n, pooled_noise = pool_shape(ix, iy, iz, voxel, table_keys, table_values, counts,
+                                     sums, squares, noise, min_points, scans_2d, pooled_sums,
+                                     pooled_squares)
         means[slot, 0] = (ix + 0.5) * voxel + pooled_sums[0] / n
         means[slot, 1] = (iy + 0.5) * voxel + pooled_sums[1] / n
         means[slot, 2] = (iz + 0.5) * voxel + pooled_sums[2] / n

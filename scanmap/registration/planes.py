@@ -147,13 +147,38 @@ def fit_voxel(n, sums, squares, noise, voxel, min_points, flatness, scans_2d, no
     return flags, plane_var, line_var
 
 
+SPARSE_REACH = 2  # voxels: a sparse 2-D neighbourhood is widened to this half-width
+
+
+@njit(cache=True, nogil=True)
+def pool_shape(ix, iy, iz, voxel, keys, values, counts, sums, squares, noise, min_points,
+               scans_2d, pooled_sums, pooled_squares):
+    """Statistics of the neighbourhood that judges voxel (ix, iy, iz)'s shape.
+
+    Its 6 face neighbours; in a 2-D scan where they hold fewer than `min_points`, the
+    (2 SPARSE_REACH + 1)^2 square around it in the scan plane. A 2-D laser's beams are
+    1 deg apart, 10 cm at 6 m: beyond that each 10 cm voxel holds one point of a wall
+    per scan, and a wall seen once or twice would otherwise have no line to match. The
+    widened square is 0.5 m of wall, still straight; a corner inside it fails the
+    flatness test as before.
+    """
+    n, pooled_noise = pool_neighbours(ix, iy, iz, voxel, keys, values, counts, sums,
+                                      squares, noise, pooled_sums, pooled_squares, 0)
+    if scans_2d and n < min_points:
+        n, pooled_noise = pool_neighbours(ix, iy, iz, voxel, keys, values, counts, sums,
+                                          squares, noise, pooled_sums, pooled_squares,
+                                          SPARSE_REACH)
+    return n, pooled_noise
+
+
 @njit(cache=True, nogil=True)
 def pool_neighbours(ix, iy, iz, voxel, keys, values, counts, sums, squares, noise,
-                    pooled_sums, pooled_squares):
-    """Statistics of voxel (ix, iy, iz) and its 6 face neighbours, relative to its centre.
+                    pooled_sums, pooled_squares, reach):
+    """Statistics of voxel (ix, iy, iz) and its neighbours, relative to its centre.
 
-    Returns (count, summed noise variance); writes sums (3) and squares (6) into the
-    pooled arrays.
+    reach 0: its 6 face neighbours; reach r > 0: the voxels within r in x and y in its
+    own z layer (a 2-D scan's plane). Returns (count, summed noise variance); writes
+    sums (3) and squares (6) into the pooled arrays.
     A voxel's own points cannot tell a real surface from a sliver cut off an edge by the
     grid; its neighbourhood can: around an edge it is no plane.
     """
@@ -161,10 +186,11 @@ def pool_neighbours(ix, iy, iz, voxel, keys, values, counts, sums, squares, nois
     pooled_noise = 0.0
     pooled_sums[:] = 0.0
     pooled_squares[:] = 0.0
-    for dx in range(-1, 2):
-        for dy in range(-1, 2):
+    side = max(reach, 1)
+    for dx in range(-side, side + 1):
+        for dy in range(-side, side + 1):
             for dz in range(-1, 2):
-                if abs(dx) + abs(dy) + abs(dz) > 1:
+                if (reach == 0 and abs(dx) + abs(dy) + abs(dz) > 1) or (reach > 0 and dz != 0):
                     continue
                 key = voxel_key(ix + dx, iy + dy, iz + dz)
                 if key < 0:

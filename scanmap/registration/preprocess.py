@@ -161,7 +161,7 @@ def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, mi
             continue
         pooled, pooled_noise = pool_neighbours(cells[v, 0], cells[v, 1], cells[v, 2], voxel,
                                                keys, values, counts, sums, squares, noise,
-                                               pooled_sums, pooled_squares)
+                                               pooled_sums, pooled_squares, 0)
         flags, _, _ = fit_voxel(pooled, pooled_sums, pooled_squares, pooled_noise, voxel,
                                 min_points, flatness, scans_2d, plane_normal, wall_normal)
         if pooled < min_points:  # too sparse to judge (far points of a 2-D scan): no normal

@@ -27,6 +27,13 @@ def neighbourhood(groups: dict[tuple, np.ndarray], cell: tuple) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def square_neighbourhood(groups: dict[tuple, np.ndarray], cell: tuple, reach: int) -> np.ndarray:
+    """Indices of the points within `reach` voxels of `cell` in x and y, in its z layer."""
+    parts = [groups[c] for dx in range(-reach, reach + 1) for dy in range(-reach, reach + 1)
+             if (c := (cell[0] + dx, cell[1] + dy, cell[2])) in groups]
+    return np.concatenate(parts)
+
+
 def wall_fit(points: np.ndarray) -> tuple[float, float, np.ndarray, float]:
     """(thin variance, long variance, horizontal unit normal, z variance) of points."""
     cov = np.cov(points.T, bias=True)

@@ -194,6 +194,45 @@ def test_local_map_planes_match_reference():
     assert checked > 50
 
 
+def _beams(ranges: np.ndarray, step_deg: float = 1.0) -> np.ndarray:
+    """A 2-D laser scan's points (z = 0) for `ranges` over consecutive beams."""
+    angles = np.radians(step_deg * np.arange(len(ranges)) - 45.0)
+    return np.column_stack([ranges * np.cos(angles), ranges * np.sin(angles),
+                            np.zeros(len(ranges))])
+
+
+def test_sparse_2d_walls_get_lines_from_a_wider_square():
+    """A 2-D laser's far wall puts about one beam in each 10 cm voxel: the face neighbours
+    hold too few points to fit a line, so the wider square in the scan plane judges it
+    (numpy reference); a corner inside that square is still no line."""
+    angles = np.radians(0.5 * np.arange(180) - 45.0)
+    wall = 8.0 / np.cos(angles)  # a wall 8 m ahead, beams 0.5 deg apart: 7-14 cm on it
+    rng = np.random.default_rng(5)
+    points = _beams(wall + rng.normal(0, 0.005, wall.size), 0.5)
+    corner = np.array([[6.0 + 0.12 * i, 0.03, 0.0] for i in range(4)]
+                      + [[6.03, 0.12 * i + 0.15, 0.0] for i in range(3)])
+    points = np.vstack([points[np.abs(points[:, 1]) > 1.0], corner])
+    local_map = LocalMap(voxel_size=0.1, max_count=10 ** 6, radius=20.0, flatness=0.3,
+                         scans_2d=True)
+    local_map.insert(points, 1, 2.5e-5)
+    groups = reference.group_by_voxel(points, 0.1)
+    lines = 0
+    for slot in range(len(local_map)):
+        cell = key_coords(local_map.voxel_keys[slot])
+        near = reference.neighbourhood(groups, cell)
+        if len(near) < 4:
+            near = reference.square_neighbourhood(groups, cell, 2)
+        np.testing.assert_allclose(local_map.means[slot], points[near].mean(axis=0), atol=1e-9)
+        on_corner = abs(points[near, 0] - 6.0).max() < 0.5
+        assert bool(local_map.flags[slot] & LINE) == (not on_corner and len(near) >= 4)
+        lines += bool(local_map.flags[slot] & LINE)
+        if local_map.flags[slot] & LINE:
+            _, _, normal, _ = reference.wall_fit(points[near])
+            assert abs(abs(normal @ local_map.line_normals[slot]) - 1) < 1e-6
+            assert abs(local_map.line_normals[slot][0]) > 0.99  # the wall faces the sensor
+    assert lines > 40
+
+
 def test_normal_equations_match_reference():
     rng = np.random.default_rng(4)
     config = RegistrationConfig()
