@@ -14,7 +14,10 @@ Weights: Geman-McClure, w = (k^2 / (k^2 + r^2))^2 with k a third of the threshol
 the point's variance (range sigma of the mean + plane thickness + model floor), so a
 close, sharp point counts more than a far, noisy one. One kernel pass builds H and g for
 all six parameters; planar mode keeps x, y, yaw. Degenerate directions are projected out
-(`degeneracy`), the prior's information is added, and the step is solved.
+(`degeneracy`), the geometry's information is divided by the residuals' chi-square per
+degree of freedom where it exceeds 1 (a scan noisier than modelled, as a real 2-D laser
+log's, weighs less against the prior), the prior's information is added, and the step
+is solved.
 """
 
 from __future__ import annotations
@@ -199,6 +202,8 @@ def _gauss_newton(source: Source, local_map: LocalMap, pose: np.ndarray, prior: 
         hessian, gradient, stats = evaluate(source, local_map, pose, threshold, config)
         degeneracy = _degeneracy(hessian[np.ix_(axes, axes)], stats, lever, axes, config)
         h, g = degeneracy.project(hessian[np.ix_(axes, axes)], gradient[axes])
+        scale = _noise_scale(stats, len(axes))
+        h, g = h / scale, g / scale
         error = between(prior.pose, pose)[axes]
         step = np.linalg.solve(h + information, -(g + information @ error))
         if not np.isfinite(step).all():
@@ -212,15 +217,20 @@ def _gauss_newton(source: Source, local_map: LocalMap, pose: np.ndarray, prior: 
     return pose, iterations
 
 
+def _noise_scale(stats: np.ndarray, dof: int) -> float:
+    """How much larger the residuals are than their modelled sigmas (chi-square per degree
+    of freedom, at least 1): the geometry's information is divided by it, so a scan
+    noisier than modelled weighs less against the prior."""
+    inliers = int(stats[0])
+    return max(1.0, stats[2] / (inliers - dof)) if inliers > dof else 1.0
+
+
 def _alignment(pose, h, information, stats, inliers, degeneracy, iterations, finite,
                axes) -> Alignment:
     fine_inliers = int(stats[0])
-    dof = len(axes)
-    # Scale the geometric information down when residuals exceed their modelled sigmas.
-    chi2_per_dof = stats[2] / max(fine_inliers - dof, 1)
-    scale = max(1.0, chi2_per_dof) if fine_inliers > dof else 1.0
     covariance = np.zeros((6, 6))
-    covariance[np.ix_(axes, axes)] = np.linalg.inv(h / scale + information)
+    covariance[np.ix_(axes, axes)] = np.linalg.inv(h / _noise_scale(stats, len(axes))
+                                                   + information)
     return Alignment(pose=pose, covariance=covariance, inliers=inliers,
                      inlier_rmse=float(np.sqrt(stats[1] / fine_inliers)) if fine_inliers
                      else float("nan"),

@@ -164,3 +164,15 @@ def test_local_map_refuses_points_beyond_its_reach():
     local_map = LocalMap(voxel_size=0.1)
     with pytest.raises(MapError, match="local origin"):
         local_map.insert(np.array([[2e5, 0.0, 0.0]]), 1)
+
+
+def test_noise_scale_is_the_chi_square_per_degree_of_freedom_above_one():
+    from scanmap.registration.icp import _noise_scale
+
+    rng = np.random.default_rng(0)
+    residuals = rng.normal(0.0, 0.02, 5000)  # twice the modelled 1 cm sigma
+    stats = np.array([residuals.size, 0.0, np.sum(residuals ** 2 / 0.01 ** 2), 0.0])
+    assert _noise_scale(stats, 3) == pytest.approx(4.0, rel=0.05)
+    quiet = stats * [1, 0, 1 / 16, 0]  # half the modelled sigma
+    assert _noise_scale(quiet, 3) == 1.0  # quieter than modelled: never more weight
+    assert _noise_scale(np.array([3.0, 0.0, 1e6, 0.0]), 3) == 1.0  # no degree of freedom left
