@@ -173,6 +173,82 @@ def ring_heights_reference(labels: np.ndarray, count: int, is_floor: np.ndarray,
 
 
 @njit(cache=True, nogil=True)
+def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: int,
+                 step: float) -> np.ndarray:
+    """`known` and the cells without a hit lying between two known cells along a row, a
+    column or a diagonal, at most `size` + 1 cells apart (metric: a diagonal step is
+    sqrt(2) cells), heights within `step`, no other cell with a hit between them
+    (`interpolated_reference` is the plain version)."""
+    ny, nx = known.shape
+    out = known.copy()
+    reach = size + 1
+    for y in range(ny):
+        for x in range(nx):
+            if known[y, x] or hit[y, x]:
+                continue
+            for d in range(4):
+                dy, dx = (0, 1, 1, 1)[d], (1, 0, 1, -1)[d]
+                length = math.sqrt(dy * dy + dx * dx)
+                ka, kb = 0, 0
+                ha, hb = np.nan, np.nan
+                for k in range(1, reach + 1):  # forward: the first cell with a hit
+                    yy, xx = y + k * dy, x + k * dx
+                    if k * length > reach or not (0 <= yy < ny and 0 <= xx < nx):
+                        break
+                    if known[yy, xx] or hit[yy, xx]:
+                        if known[yy, xx]:
+                            ka, ha = k, heights[yy, xx]
+                        break
+                if ka == 0:
+                    continue
+                for k in range(1, reach + 1):  # backward
+                    yy, xx = y - k * dy, x - k * dx
+                    if (ka + k) * length > reach or not (0 <= yy < ny and 0 <= xx < nx):
+                        break
+                    if known[yy, xx] or hit[yy, xx]:
+                        if known[yy, xx]:
+                            kb, hb = k, heights[yy, xx]
+                        break
+                if kb > 0 and abs(ha - hb) <= step:  # False for NaN
+                    out[y, x] = True
+                    break
+    return out
+
+
+def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarray,
+                           size: int, step: float) -> np.ndarray:
+    """`interpolated` in numpy (shifted copies of the grids), for tests."""
+    ny, nx = known.shape
+    informative = known | hit
+    heights = np.where(known, heights, np.nan)
+    out = known.copy()
+    pad = size + 1
+    p_inf, p_known = np.pad(informative, pad), np.pad(known, pad)
+    p_h = np.pad(heights, pad, constant_values=np.nan)
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        ends = []
+        for sign in (1, -1):
+            found = np.zeros((ny, nx), bool)
+            ok = np.zeros((ny, nx), bool)
+            distance = np.zeros((ny, nx), np.int64)
+            height = np.full((ny, nx), np.nan, heights.dtype)
+            for k in range(1, size + 2):
+                y0, x0 = pad + sign * k * dy, pad + sign * k * dx
+                window = (slice(y0, y0 + ny), slice(x0, x0 + nx))
+                new = ~found & p_inf[window]
+                ok |= new & p_known[window]
+                distance[new] = k
+                height[new] = p_h[window][new]
+                found |= new
+            ends.append((ok, distance, height))
+        (ok_a, d_a, h_a), (ok_b, d_b, h_b) = ends
+        span = (d_a + d_b) * np.hypot(dy, dx)
+        with np.errstate(invalid="ignore"):
+            out |= ok_a & ok_b & (span <= size + 1) & (np.abs(h_a - h_b) <= step) & ~hit
+    return out
+
+
+@njit(cache=True, nogil=True)
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float) -> np.ndarray:
     """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step."""
     ny, nx = heights.shape

@@ -18,20 +18,25 @@ height (default 5 cm) are driven on; a steeper ramp or a higher step is not.
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
 floor is not where it must be), is a DROP_OFF; the drop-off spreads up to `drop_reach`
-through cells without any hit that do not touch floor (the shadow of the rim, not the
-gaps between the laser's samples), and one cell on up to the rim, so its edge is within
-a cell of the last floor seen. DROP_OFF is never free and lethal in the costmap.
+through cells without any hit that touch no hit but the drop-off's own (the shadow of the
+rim: not the gaps between the laser's samples, nor the shadow of an object standing
+beside the drop-off), and one cell on up to the rim, so its edge is within a cell of the
+last floor seen. DROP_OFF is never free and lethal in the costmap.
 
-No return is not free: a cell without any hit in or around it (3 x 3) where rays passed
-within `floor_probe` (0.1 m) of the floor height - the laser stripe ran over it and
-nothing came back: black carpet, a hole nothing returned from - is never FREE, nor is a
-cell too steep to be floor. The exceptions are known floor: the robot's footprint at the poses it
-scanned from (it stood there; FREE unless something occupies its band), the assumed
-`fallback_floor` of a 2-D laser, and a patch without any hit no larger than `max_hole`
-(0.3 m, each side) enclosed by floor whose heights differ by at most a step, or whose
-hits within two cells are all such floor (a gap between the laser's samples), away from
-any drop-off. A real hole of max_hole or less still returns hits below the floor, or lets
-rays pass below it, so the drop-off rule catches it first.
+No return is not free: a cell is FREE only where the floor was seen - a floor hit in
+the cell - or is known otherwise: the robot's footprint at the poses it scanned from (it
+stood there; FREE unless something occupies its band), the assumed `fallback_floor` of a
+2-D laser, a patch without any hit no larger than `max_hole` (0.3 m, each side) enclosed
+by floor whose heights differ by at most a step, or whose hits within two cells are all
+such floor (a gap between the laser's samples), away from any drop-off, and a cell
+without any hit between two such cells at most three cells (15 cm) apart along a row, a
+column or a diagonal, with heights within a step (the gaps between samples too narrow to
+hold a cell without a hit next to it). Every other cell - black carpet, a hole nothing
+returned from, the floor beyond the last floor hit before a drop-off, floor never lit at
+all - stays UNKNOWN however much of the band rays saw over it (its floor height carried
+from nearby floor is an assumption, not a sighting), as does a cell too steep to be
+floor. A real hole of max_hole or less returns hits below the floor (its far wall) that
+are not floor, so it is not a gap; it is a DROP_OFF where those lie more than a step down.
 
 Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known and not unlit (above), nothing
@@ -296,23 +301,29 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                           robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
-    if drop.any():  # through the rim's shadow: unobserved, not next to floor (a gap in it)
-        shadow = ~ndimage.binary_dilation(is_floor | stood | holes, np.ones((3, 3), bool)) \
-            & (layers.nlev == 0)
+    if drop.any():  # through the rim's shadow: no hit there or next to it but the drop's
+        # own (not a gap in the floor, nor the shadow of an object beside the drop-off)
+        shadow = ~ndimage.binary_dilation(is_floor | stood | holes | (layers.nlev > 0) & ~drop,
+                                          np.ones((3, 3), bool)) & (layers.nlev == 0)
         drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool), mask=shadow,
                                        iterations=max(round(params.drop_reach / res), 1)) | drop
         drop |= ndimage.binary_dilation(drop, np.ones((3, 3), bool)) & (layers.nlev == 0) \
             & ~is_floor & ~stood & ~holes  # and up to the rim
     holes &= ~drop
-    # Floor the laser should have lit (rays passed low over it) and did not return from,
-    # with no hit in the cells around either (not the foot of a surface a ray ended on)
+    # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
+    # if the whole patch is small and inside level floor; where rays passed low over one
+    # (not the foot of a surface a ray ended on) the laser should have lit it
     probed = _lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
         <= floor_height + params.floor_probe
     bare = ~ndimage.maximum_filter(layers.nlev > 0, size=3)
-    holes |= _lit_gaps(probed & bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
+    holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
                        floor_height, drop, round(params.max_hole / res), robot.step_height)
     unlit = (probed & bare) | steep
     unlit &= ~is_floor & ~stood & ~assumed & ~holes
+    # No return is not free: the floor seen (a hit there), a gap, stood on, assumed, or
+    # between two such cells
+    unlit |= ~nk.interpolated(is_floor | holes | stood | assumed, (layers.nlev > 0) | drop,
+                              floor_height, 2, robot.step_height)
     state = np.empty((ny, nx), np.uint8)
     points = np.empty((ny, nx, 2), np.float32)
     band_logodds = np.empty((ny, nx), np.float32)

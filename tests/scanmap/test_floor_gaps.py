@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.navigation import _kernels as nk
 from scanmap.navigation import floor as floor_module
 from scanmap.navigation.floor import FloorConfig, RobotShape, segment
 
@@ -85,3 +86,79 @@ def test_without_pooling_the_coverage_rule_is_the_kernels(monkeypatch):
     numpy_rule = segment(layers)
     assert (kernel.state == numpy_rule.state).all()
     assert (kernel.state == floor_module.FREE).sum() > 100
+
+
+def interpolated(known: np.ndarray, hit: np.ndarray | None = None,
+                 heights: np.ndarray | None = None) -> np.ndarray:
+    hit = known.copy() if hit is None else hit
+    heights = np.zeros(known.shape, np.float32) if heights is None else heights
+    out = nk.interpolated(known, hit, heights, 2, STEP)
+    assert (out == nk.interpolated_reference(known, hit, heights, 2, STEP)).all()
+    return out
+
+
+@pytest.mark.parametrize("gap", [1, 2, 3])
+def test_a_gap_of_two_cells_between_floor_samples_is_floor_a_wider_one_not(gap):
+    known = np.zeros((7, 12), bool)
+    known[3, 2] = known[3, 3 + gap] = True  # along a row
+    out = interpolated(known)
+    assert out[3, 3:3 + gap].all() == (gap <= 2)
+    assert out.sum() == 2 + (gap if gap <= 2 else 0)
+    assert (interpolated(known.T) == out.T).all()  # along a column
+
+
+def test_a_diagonal_gap_is_measured_in_metres():
+    known = np.zeros((8, 8), bool)
+    known[1, 1] = known[3, 3] = True  # one cell apart on the diagonal: 2.8 cells
+    assert interpolated(known)[2, 2]
+    known[3, 3], known[4, 4] = False, True  # two cells: 4.2 cells, wider than a 2-cell gap
+    assert not interpolated(known)[2:4, 2:4].any()
+    flipped = np.zeros((8, 8), bool)
+    flipped[1, 3] = flipped[3, 1] = True  # the other diagonal
+    assert interpolated(flipped)[2, 2]
+
+
+@pytest.mark.parametrize("spoil", ["hit", "step"])
+def test_no_interpolation_across_a_hit_that_is_not_floor_nor_across_a_step(spoil):
+    known = np.zeros((7, 12), bool)
+    known[3, 2] = known[3, 5] = True
+    hit = known.copy()
+    heights = np.zeros(known.shape, np.float32)
+    if spoil == "hit":
+        hit[3, 4] = True  # a hit that is not floor: the gap is no gap
+    else:
+        heights[3, 5] = 2 * STEP
+    out = interpolated(known, hit, heights)
+    assert not out[3, 3:5].any()
+
+
+def test_cells_without_floor_seen_are_never_free_however_much_of_the_band_rays_saw():
+    # Floor hits round a 0.6 m square without any (black carpet, a hole nothing returned
+    # from), rays from 1 m up: the cells inside are seen over, never seen as floor
+    grid = HeightGrid(GridConfig(extent=20.0))
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-2.5, 2.5, (6000, 2))
+    xy = xy[(np.abs(xy[:, 0] - 1.0) > 0.3) | (np.abs(xy[:, 1]) > 0.3)]
+    points = np.column_stack([xy, np.zeros(len(xy))])
+    for origin in ([0.0, 0.0, 1.0], [1.0, 0.5, 1.0], [2.0, -0.5, 1.0]):
+        grid.insert(points, np.array(origin), 1.0)
+    seg = segment(grid.layers((-2.0, -2.0, 2.0, 2.0)))
+    x = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution
+    y = seg.origin[1] + (np.arange(seg.shape[0]) + 0.5) * seg.resolution
+    gx, gy = np.meshgrid(x, y)
+    inside = (np.abs(gx - 1.0) < 0.3 - seg.resolution) & (np.abs(gy) < 0.3 - seg.resolution)
+    assert inside.sum() > 50
+    assert not (seg.state[inside] == floor_module.FREE).any()
+    assert (seg.state[~inside] == floor_module.FREE).sum() > 100
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_interpolation_matches_its_numpy_reference(seed):
+    rng = np.random.default_rng(seed)
+    known = rng.random((30, 40)) < 0.3
+    hit = known | (rng.random((30, 40)) < 0.1)
+    heights = rng.normal(0.0, 0.04, (30, 40)).astype(np.float32)
+    heights[rng.random((30, 40)) < 0.05] = np.nan
+    for size in (1, 2, 4):
+        assert (nk.interpolated(known, hit, heights, size, STEP)
+                == nk.interpolated_reference(known, hit, heights, size, STEP)).all()
