@@ -149,16 +149,20 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
 
 def hazard_run(scans: int | None = None, seed: int = 0) -> dict[str, float]:
     """The drop-off and ramp measures on the built-in `hazards` scene after its last scan,
-    and the worst count of free drop-off cells over all scans."""
+    the worst count of free drop-off cells, the worst edge error and the least share of
+    the edge within one cell over all scans."""
     scene = builtin_scene("hazards")
     raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height,
                           max_slope=PARAMS.max_slope)
-    worst = 0
+    worst, edge_worst, within_worst = 0, 0.0, 1.0
     for step in mapped(scene, scans, seed):
         truth = truth_classes(step.seg, raster)
         measures = drop_measures(step.seg, truth)
         worst = max(worst, measures["drop_free"])
-    return {**measures, "drop_free_any_scan": worst,
+        edge_worst = max(edge_worst, measures["edge_error_cells"])
+        within_worst = min(within_worst, measures["edge_within_one"])
+    return {**measures, "drop_free_any_scan": worst, "edge_error_any_scan": edge_worst,
+            "edge_within_one_any_scan": within_worst,
             "ramp_f1": ramp_f1(step.seg, truth, step.hits, scene)}
 
 

@@ -18,10 +18,12 @@ height (default 5 cm) are driven on; a steeper ramp or a higher step is not.
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
 floor is not where it must be), is a DROP_OFF; the drop-off spreads up to `drop_reach`
-through cells without any hit that touch no hit but the drop-off's own (the shadow of the
-rim: not the gaps between the laser's samples, nor the shadow of an object standing
-beside the drop-off), and one cell on up to the rim, so its edge is within a cell of the
-last floor seen. DROP_OFF is never free and lethal in the costmap.
+through cells without any hit that touch no hit but the drop-off's own and do not lie
+between two floor cells at most `max_hole` apart (the shadow of the rim: not the gaps
+between the laser's samples, nor the shadow of an object standing beside the
+drop-off), and one cell on up to the rim but for the gaps between floor samples (below),
+so its edge is within a cell of the last floor seen. DROP_OFF is never free and lethal
+in the costmap.
 
 No return is not free: a cell is FREE only where the floor was seen - a floor hit in
 the cell - or is known otherwise: the robot's footprint at the poses it scanned from (it
@@ -302,13 +304,17 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
     if drop.any():  # through the rim's shadow: no hit there or next to it but the drop's
-        # own (not a gap in the floor, nor the shadow of an object beside the drop-off)
+        # own, not between floor samples (a gap in the floor, the shadow of an object)
         shadow = ~ndimage.binary_dilation(is_floor | stood | holes | (layers.nlev > 0) & ~drop,
                                           np.ones((3, 3), bool)) & (layers.nlev == 0)
+        shadow &= ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
+                                   floor_height, round(params.max_hole / res),
+                                   robot.step_height)  # nor between floor samples
         drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool), mask=shadow,
                                        iterations=max(round(params.drop_reach / res), 1)) | drop
         drop |= ndimage.binary_dilation(drop, np.ones((3, 3), bool)) & (layers.nlev == 0) \
-            & ~is_floor & ~stood & ~holes  # and up to the rim
+            & ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
+                               floor_height, 2, robot.step_height)  # and up to the rim
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
