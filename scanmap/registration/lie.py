@@ -66,3 +66,20 @@ def between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     relative[:3, :3] = rotation @ b[:3, :3]
     relative[:3, 3] = rotation @ (b[:3, 3] - a[:3, 3])
     return pose_log(relative)
+
+
+def transport(covariance: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Covariance (6x6) of a body-frame perturbation of a pose T, expressed at T @ step.
+
+    T exp(d) step = T step exp(J d) to first order, with J = [[Rs^T, -Rs^T [ts]x],
+    [0, Rs^T]] for step = (Rs, ts) and the decoupled `pose_exp`: an uncertain heading
+    moves the point `step` ahead sideways.
+    """
+    rotation_t = step[:3, :3].T
+    tx, ty, tz = step[:3, 3]
+    skew = np.array([[0.0, -tz, ty], [tz, 0.0, -tx], [-ty, tx, 0.0]])
+    jacobian = np.zeros((6, 6))
+    jacobian[:3, :3] = rotation_t
+    jacobian[:3, 3:] = -rotation_t @ skew
+    jacobian[3:, 3:] = rotation_t
+    return jacobian @ covariance @ jacobian.T

@@ -20,7 +20,7 @@ import numpy as np
 from scanmap.io.trajectory import Trajectory
 from scanmap.registration.calibration import OdometryCalibration
 from scanmap.registration.config import RegistrationConfig
-from scanmap.registration.lie import pose_exp, pose_log
+from scanmap.registration.lie import pose_exp, pose_log, transport
 from scanmap.registration.local_map import LocalMap
 from scanmap.registration.matcher import register_scan
 from scanmap.registration.preprocess import Source, prepare_source
@@ -53,6 +53,7 @@ class ScanOdometry:
         self._local: list[np.ndarray] = []  # map-local poses
         self._odometry: np.ndarray | None = None  # odometry at the last scan
         self._failures = 0
+        self._carried = np.zeros((6, 6))  # uncertainty of the last pose the map did not fix
 
     def _new_map(self) -> LocalMap:
         c = self.config
@@ -140,11 +141,14 @@ class ScanOdometry:
             covariance = np.eye(6) * _UNKNOWN_SIGMA ** 2
         if self.config.planar:
             step = se2_to_pose(*pose_to_se2(step))
-        return Prior(last @ step, covariance)
+        # The last scan's pose is only its prior when it did not register: its uncertainty
+        # carries into this one's (a wrong turn kept from odometry must stay correctable).
+        return Prior(last @ step, covariance + transport(self._carried, step))
 
     def _accept(self, result: RegistrationResult, prior: Prior, source: Source,
                 stamp: float, odometry: np.ndarray | None) -> None:
         """Record the pose; grow the map with a registered scan, or count a failure."""
+        self._carried = np.zeros((6, 6)) if result.ok else prior.covariance
         if result.ok:
             self._failures = 0
             if self._local:
@@ -160,6 +164,7 @@ class ScanOdometry:
                 self.local_map = self._new_map()
                 self._insert(result.pose, source)
                 self._failures = 0
+                self._carried = np.zeros((6, 6))  # the new map starts at this pose
         self._local.append(result.pose)
         self.stamps.append(stamp)
         self._odometry = odometry

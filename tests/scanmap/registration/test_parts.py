@@ -11,10 +11,20 @@ from scanmap.registration import (
     OdometryNoiseConfig,
     Prior,
     RegistrationConfig,
+    RegistrationStatus,
+    ScanOdometry,
     analyse_degeneracy,
 )
 from scanmap.registration.calibration import OdometryCalibration
-from scanmap.registration.lie import between, pose_exp, pose_log, retract, so3_exp, so3_log
+from scanmap.registration.lie import (
+    between,
+    pose_exp,
+    pose_log,
+    retract,
+    so3_exp,
+    so3_log,
+    transport,
+)
 from scanmap.registration.threshold import AdaptiveThreshold
 from scanmap_driver.errors import MapError, RegistrationError
 from scanmap_driver.transforms import pose_to_se2, se2_to_pose
@@ -176,3 +186,33 @@ def test_noise_scale_is_the_chi_square_per_degree_of_freedom_above_one():
     quiet = stats * [1, 0, 1 / 16, 0]  # half the modelled sigma
     assert _noise_scale(quiet, 3) == 1.0  # quieter than modelled: never more weight
     assert _noise_scale(np.array([3.0, 0.0, 1e6, 0.0]), 3) == 1.0  # no degree of freedom left
+
+
+def test_transport_moves_a_perturbation_to_the_pose_a_step_ahead():
+    """exp(d) step = step exp(J d): the sampled J d have the covariance transport gives."""
+    rng = np.random.default_rng(1)
+    step = pose_exp(np.array([0.8, -0.3, 0.05, 0.02, -0.01, 0.5]))
+    covariance = np.diag(rng.uniform(1e-8, 1e-6, 6))
+    samples = rng.multivariate_normal(np.zeros(6), covariance, 4000)
+    moved = np.array([between(step, pose_exp(d) @ step) for d in samples])
+    np.testing.assert_allclose(np.cov(moved.T), transport(covariance, step), atol=2e-8,
+                               rtol=0.1)
+
+
+def test_a_pose_the_map_did_not_fix_carries_its_uncertainty_to_the_next_prior():
+    noise = OdometryNoiseConfig()
+    registration = ScanOdometry(noise=noise)
+    wall = np.column_stack([np.full(400, 2.0), np.linspace(-2, 2, 400), np.linspace(0.1, 1, 400)])
+    registration.register_points(wall, stamp=0.0, odometry=np.eye(4))
+    steps = [se2_to_pose(0.3, 0.0, 0.1), se2_to_pose(0.3, 0.05, -0.2)]
+    odometry = np.eye(4)
+    results = []
+    for k, step in enumerate(steps, start=1):
+        odometry = odometry @ step
+        results.append(registration.register_points(wall[:3], stamp=float(k),
+                                                    odometry=odometry))
+    assert [r.status for r in results] == [RegistrationStatus.TOO_FEW_POINTS] * 2
+    first, second = (r.covariance for r in results)
+    np.testing.assert_allclose(first, noise.odometry_covariance(steps[0]))
+    np.testing.assert_allclose(second, noise.odometry_covariance(steps[1])
+                               + transport(first, steps[1]), atol=1e-15)
