@@ -38,7 +38,11 @@ returned from, the floor beyond the last floor hit before a drop-off, floor neve
 all - stays UNKNOWN however much of the band rays saw over it (its floor height carried
 from nearby floor is an assumption, not a sighting), as does a cell too steep to be
 floor. A real hole of max_hole or less returns hits below the floor (its far wall) that
-are not floor, so it is not a gap; it is a DROP_OFF where those lie more than a step down.
+are not floor, so it is not a gap; it is a DROP_OFF where those lie more than a step down,
+and its cells without any hit around them are when a surface lies wholly below the floor
+model (more than `plane_tolerance`) within two cells of them, away from any other
+drop-off: the floor goes down into a small patch nothing returned from (seen from afar,
+this scanner's laser lands only on the top few cm of a hole's far wall).
 
 Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known and not unlit (above), nothing
@@ -73,6 +77,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers
 from scanmap.navigation import _kernels as nk
 from scanmap.navigation._kernels import DROP_OFF as DROP_OFF  # re-exported: the cell states
@@ -324,12 +329,15 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     bare = ~ndimage.maximum_filter(layers.nlev > 0, size=3)
     holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
                        floor_height, drop, round(params.max_hole / res), robot.step_height)
-    unlit = (probed & bare) | steep
-    unlit &= ~is_floor & ~stood & ~assumed & ~holes
     # No return is not free: the floor seen (a hit there), a gap, stood on, assumed, or
     # between two such cells
-    unlit |= ~nk.interpolated(is_floor | holes | stood | assumed, (layers.nlev > 0) | drop,
-                              floor_height, 2, robot.step_height)
+    seen_floor = nk.interpolated(is_floor | holes | stood | assumed, (layers.nlev > 0) | drop,
+                                 floor_height, 2, robot.step_height)
+    drop |= _sunk(bare & ~holes & ~is_floor & ~stood & ~assumed, layers, is_floor, lowest,
+                  drop, round(params.max_hole / res), params.plane_tolerance)
+    unlit = (probed & bare) | steep
+    unlit &= ~is_floor & ~stood & ~assumed & ~holes
+    unlit |= ~seen_floor
     state = np.empty((ny, nx), np.uint8)
     points = np.empty((ny, nx, 2), np.float32)
     band_logodds = np.empty((ny, nx), np.float32)
@@ -357,6 +365,34 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
                         slope=np.where(is_floor, slope, np.nan).astype(np.float32))
+
+
+def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray,
+          drop: np.ndarray, size: int, tolerance: float) -> np.ndarray:
+    """The patches of `dark` (no hit in or around them, not a gap) at most `size` cells on
+    each side, not at the window's edge nor next to a drop-off (its shadow is the drop's
+    own rule), with a surface wholly below the floor model (its lowest level more than
+    `tolerance` below the lowest floor around) within two cells: the floor goes down into
+    a small patch nothing returned from (a hole's far wall, seen only at its top). Not
+    the cells around the patch: a hit or floor near, they may be floor (the hole's extent
+    is not known there), so they stay UNKNOWN."""
+    ny, nx = dark.shape
+    with np.errstate(invalid="ignore"):
+        low = (layers.nlev > 0) & ~is_floor & (layers.levels[:, :, 0, gk.HI] < lowest - tolerance)
+    out = np.zeros((ny, nx), bool)
+    if not low.any():
+        return out
+    labels, _ = ndimage.label(dark, np.ones((3, 3), bool))
+    near = ndimage.maximum_filter(low, size=5)
+    near_drop = ndimage.maximum_filter(drop, size=3)
+    for index, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
+        if (rows.stop - rows.start > size or cols.stop - cols.start > size or rows.start < 2
+                or cols.start < 2 or rows.stop > ny - 2 or cols.stop > nx - 2):
+            continue
+        patch = labels[rows, cols] == index
+        if near[rows, cols][patch].any() and not near_drop[rows, cols][patch].any():
+            out[rows, cols] |= patch
+    return out
 
 
 def _lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.navigation import _kernels as nk
@@ -162,3 +163,33 @@ def test_interpolation_matches_its_numpy_reference(seed):
     for size in (1, 2, 4):
         assert (nk.interpolated(known, hit, heights, size, STEP)
                 == nk.interpolated_reference(known, hit, heights, size, STEP)).all()
+
+
+@pytest.mark.parametrize("wall", [False, True])
+def test_a_small_patch_without_returns_is_a_hole_beside_a_surface_below_the_floor(wall):
+    # A 0.25 m patch without hits in dense floor hits: a gap, floor; with the top of its
+    # far wall seen 4-12 cm below the floor (a surface below the floor model, though not
+    # wholly a step below), a hole: the cells without a hit around them are sunk
+    grid = HeightGrid(GridConfig(extent=20.0))
+    a = np.arange(-1.5, 1.5, 0.02)
+    x, y = np.meshgrid(a + 1.0, a)
+    keep = (np.abs(x - 1.0) > 0.125) | (np.abs(y) > 0.125)
+    points = np.column_stack([x[keep], y[keep], np.zeros(keep.sum())])
+    if wall:
+        wy, wz = np.meshgrid(np.linspace(-0.1, 0.1, 6), np.linspace(-0.12, -0.04, 5))
+        top = np.column_stack([np.full(wy.size, 1.13), wy.ravel(), wz.ravel()])
+        points = np.vstack([points[(np.abs(points[:, 0] - 1.14) > 0.02)
+                                   | (np.abs(points[:, 1]) > 0.125)], top])
+    grid.insert(points, np.array([0.0, 0.0, 1.0]), 1.0)
+    layers = grid.layers((-0.4, -1.0, 2.0, 1.0))
+    hit = layers.nlev > 0
+    is_floor = hit & (layers.levels[:, :, 0, 1] > -0.02)
+    dark = ~ndimage.maximum_filter(hit, size=3)
+    lowest = np.zeros(layers.shape, np.float32)
+    none = np.zeros(layers.shape, bool)
+    assert 4 <= dark.sum() <= 9
+    sunk = floor_module._sunk(dark, layers, is_floor, lowest, none, 6, 0.03)
+    assert (sunk == (dark if wall else none)).all()
+    drop = ndimage.binary_dilation(dark) & ~dark  # beside a drop-off: the drop's own rule
+    assert not floor_module._sunk(dark, layers, is_floor, lowest, drop, 6, 0.03).any()
+    assert not floor_module._sunk(dark, layers, is_floor, lowest, none, 1, 0.03).any()

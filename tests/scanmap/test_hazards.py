@@ -119,15 +119,16 @@ def patch_states(scene: Scene) -> np.ndarray:
 
 def test_a_hole_below_max_hole_is_never_free_and_a_dark_patch_of_that_size_floor():
     hole = patch_states(small_patch_scene(-0.5, 1.0))
-    assert not (hole == FREE).any()
+    assert not (hole == FREE).any() and (hole == DROP_OFF).mean() > 0.25
     dark = patch_states(small_patch_scene(0.0, 0.0))
     assert not (dark == DROP_OFF).any() and (dark == FREE).mean() > 0.5
 
 
 @pytest.mark.xfail(strict=True, reason="known gap (issue 17): the 0.25 m hole 1.2-1.7 m away "
                    "shows at most 5 cm below the floor (the top of its far wall, where the laser "
-                   "lands; rays seen free down to -5 cm), not more than a step (5 cm): it stays "
-                   "UNKNOWN, not DROP_OFF")
+                   "lands), not more than a step: only its cells without a hit around them are "
+                   "DROP_OFF (a small patch beside a surface below the floor model), 7 of 16; "
+                   "the rest stay UNKNOWN (floor samples round it too sparse to place its edge)")
 def test_a_hole_below_max_hole_is_a_drop_off():
     hole = patch_states(small_patch_scene(-0.5, 1.0))
     assert (hole == DROP_OFF).mean() > 0.5
