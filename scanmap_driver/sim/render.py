@@ -39,7 +39,6 @@ from .plan import ScanPlan
 from .scene import Scene
 from .shading import LIGHT_DIRECTION, disk_albedo, shade_scene
 
-LIGHTING = {"dark": 0.03, "bright": 0.9}  # ambient levels of the --lighting presets
 SCENE_GAIN = 0.35
 DISK_LIGHT = 0.5  # radiance of a white disk sector under its LED
 EXPOSURE_PARTS = 1  # sub-intervals of the exposure for motion blur (the path's drift in u)

@@ -48,6 +48,7 @@ from ..files import read_json, write_json
 from ..validate import check_keys, number, vector
 
 FORMAT = "scanmap.scene/1"
+LIGHTING = {"dark": 0.03, "bright": 0.9}  # ambient levels of the --lighting presets
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 DEFAULT_TEXTURE = 0.25
 MATERIALS = ("matte", "glass", "mirror")

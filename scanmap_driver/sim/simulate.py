@@ -30,8 +30,8 @@ from .geometry import scene_planes
 from .ideal import ideal_scans
 from .plan import ScanPlan, plan_scans
 from .raster import truth_raster
-from .render import LIGHTING, RenderedFrame, Renderer
-from .scene import Scene
+from .render import RenderedFrame, Renderer
+from .scene import LIGHTING, Scene
 from .truth import ScanTruth, truth_path
 
 _FRAME_NOISE = 20  # random stream purpose

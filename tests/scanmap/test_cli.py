@@ -34,3 +34,13 @@ def test_reexports_driver_types():
     from scanmap_driver.scan import Scan as DriverScan
 
     assert Scan is DriverScan
+
+
+def test_the_command_line_starts_without_open3d():
+    """Only simulating and ray-cast evaluation need Open3D (about 1 s to import): building
+    the command line (every command's options) must not load it."""
+    code = ("import sys; from scanmap.cli import build_parser; build_parser(); "
+            "print('open3d' in sys.modules)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True)
+    assert result.stdout.strip() == "False"

@@ -14,9 +14,7 @@ from pathlib import Path
 
 from scanmap_driver import ScannerModel, reference_scanner
 from scanmap_driver.sim import builtin_scene_names, resolve_scene
-from scanmap_driver.sim.camera_effects import SimCameraConfig
-from scanmap_driver.sim.render import LIGHTING
-from scanmap_driver.sim.simulate import lit_scene, simulate_ideal, simulate_recording
+from scanmap_driver.sim.scene import LIGHTING
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -46,6 +44,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    # The renderer needs Open3D (about 1 s to import): loaded only when simulating.
+    from scanmap_driver.sim.camera_effects import SimCameraConfig
+    from scanmap_driver.sim.simulate import lit_scene, simulate_ideal, simulate_recording
+
     scene = lit_scene(resolve_scene(args.scene), args.lighting)
     model = ScannerModel.load(args.scanner) if args.scanner else reference_scanner()
     start = time.perf_counter()

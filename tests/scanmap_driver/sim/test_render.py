@@ -9,7 +9,8 @@ from scanmap_driver import reference_scanner, triangulate
 from scanmap_driver.sim import builtin_scene, plan_scans
 from scanmap_driver.sim.camera_effects import SimCameraConfig
 from scanmap_driver.sim.laser_stripe import head_poses, points_from_fan, project
-from scanmap_driver.sim.render import LIGHTING, LaserAppearance, Renderer
+from scanmap_driver.sim.render import LaserAppearance, Renderer
+from scanmap_driver.sim.scene import LIGHTING
 from scanmap_driver.transforms import transform_points
 
 from .scene_sdf import surface_distance
