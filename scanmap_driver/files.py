@@ -145,21 +145,23 @@ def save_npz(path: str | os.PathLike[str], **arrays: np.ndarray) -> None:
 
 
 def load_npz(path: str | os.PathLike[str], error: type[ScanmapError],
-             required: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
-    """Load every array of an .npz without pickle; `error` names the file and missing keys."""
+             required: tuple[str, ...] = (), skip: tuple[str, ...] = ()
+             ) -> dict[str, np.ndarray]:
+    """Load every array of an .npz but those in `skip`, without pickle; `error` names the
+    file and missing keys."""
     try:
         with np.load(path, allow_pickle=False) as npz:
             if not isinstance(npz, np.lib.npyio.NpzFile):
                 raise ValueError("a single array, not an archive of named arrays")
             _check_sizes(npz)
-            arrays = {key: npz[key] for key in npz.files}
+            arrays = {key: npz[key] for key in npz.files if key not in skip}
     except FileNotFoundError:
         raise error(f"{path}: file not found") from None
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error,
             NotImplementedError, MemoryError, SyntaxError, tokenize.TokenError) as exc:
         # SyntaxError, TokenError: numpy parses each array's header as Python literals
         raise error(f"{path}: not a readable .npz file ({exc})") from None
-    missing = [key for key in required if key not in arrays]
+    missing = [key for key in required if key not in arrays and key not in skip]
     if missing:
         raise error(f"{path}: missing arrays {missing}")
     return arrays

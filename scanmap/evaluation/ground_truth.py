@@ -49,20 +49,26 @@ def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.
     true_key = (truth.laser["frame"][primary].astype(np.int64) * width
                 + np.rint(truth.laser["u"][primary]).astype(np.int64))
     true_range = np.hypot(*truth.laser["base"][primary][:, :2].T)
+    if not true_key.size:
+        return np.zeros(0), 0
     order = np.argsort(true_key)
     true_key, true_range = true_key[order], true_range[order]
-    errors = []
-    for frame in np.unique(scan.frame_index):
-        rows = scan.frame_index == frame
-        head = transform_points(invert_pose(model.head_pose(float(scan.heading[rows][0]))),
-                                scan.points[rows])
-        u = np.rint(project_head_points(model, head)[:, 0])
-        key = frame * width + np.nan_to_num(u, nan=-1.0).astype(np.int64)
-        at = np.clip(np.searchsorted(true_key, key), 0, max(len(true_key) - 1, 0))
-        found = (len(true_key) > 0) & (true_key[at] == key) & np.isfinite(u)
-        measured = np.hypot(scan.points[rows, 0], scan.points[rows, 1])
-        errors.append(measured[found] - true_range[at[found]])
-    return (np.concatenate(errors) if errors else np.zeros(0)), int(primary.sum())
+    # Frame by frame, each point turned back into the head by its frame's first heading.
+    rows = np.argsort(scan.frame_index, kind="stable")
+    frame = scan.frame_index[rows].astype(np.int64)
+    points = np.asarray(scan.points, dtype=np.float64)[rows]
+    _, first, which = np.unique(frame, return_index=True, return_inverse=True)
+    heading = np.asarray(scan.heading, dtype=np.float64)[rows][first][which]
+    mount = transform_points(invert_pose(model.head_mount.pose), points)
+    c, s = np.cos(heading), np.sin(heading)
+    head = np.column_stack([c * mount[:, 0] + s * mount[:, 1],
+                            c * mount[:, 1] - s * mount[:, 0], mount[:, 2]])
+    u = np.rint(project_head_points(model, head)[:, 0]) if len(head) else np.zeros(0)
+    key = frame * width + np.nan_to_num(u, nan=-1.0).astype(np.int64)
+    at = np.minimum(np.searchsorted(true_key, key), len(true_key) - 1)
+    found = (true_key[at] == key) & np.isfinite(u)
+    measured = np.hypot(points[:, 0], points[:, 1])
+    return measured[found] - true_range[at[found]], int(primary.sum())
 
 
 def heading_errors(scan: Scan, truth: ScanTruth) -> np.ndarray:

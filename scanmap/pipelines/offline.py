@@ -24,6 +24,7 @@ import os
 import time
 from collections import Counter, defaultdict
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -101,12 +102,15 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
     mapping_cpu = time.process_time() - start_cpu
 
     products = StageClock()
-    with products.stage("close_loops"):
-        mapper.close_loops()  # nothing to do without loop closure
-    with products.stage("segment"):
-        seg = mapper.segment()
-    with products.stage("write"):
-        files = write_products(mapper, seg, out)
+    with ThreadPoolExecutor(max(scans.workers, 1), thread_name_prefix="scanmap-truth") as pool:
+        checks = [pool.submit(scan_errors, scans, scan) for scan in kept]  # meanwhile:
+        with products.stage("close_loops"):
+            mapper.close_loops()  # nothing to do without loop closure
+        with products.stage("segment"):
+            seg = mapper.segment()
+        with products.stage("write"):
+            files = write_products(mapper, seg, out)
+        errors = ground_truth_errors(mapper, seg, scans, [check.result() for check in checks])
     for name in products.wall:
         stages[name].append(products)
 
@@ -127,7 +131,7 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
         "map": _map_summary(mapper, seg),
         "notes": notes,
         "files": files,
-        "errors": ground_truth_errors(mapper, seg, scans, kept),
+        "errors": errors,
     }
     job_wall = time.perf_counter() - start
     report["job"] = {"wall_seconds": job_wall,
@@ -198,22 +202,29 @@ def write_products(mapper: Mapper, seg: Segmentation, out: Path) -> dict[str, st
                                     "overhead.png", "occupancy.png", "report.json")}
 
 
+def scan_errors(scans: ScanSource, scan: Scan) -> tuple[np.ndarray, int, np.ndarray] | None:
+    """A mapped scan's range errors, true laser point count and heading errors against
+    its truth file (None when it has none: a resumed map's scans)."""
+    path = truth_path(scans.path, scan.index)
+    if not path.is_file():
+        return None
+    truth = ScanTruth.load(path, mask=False)
+    error, count = evaluation.range_errors(scan, truth, scans.model)
+    return error, count, evaluation.heading_errors(scan, truth)
+
+
 def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
-                        kept: list[Scan]) -> dict:
-    """Range, heading, trajectory and map errors against the input's ground truth."""
+                        checks: list[tuple[np.ndarray, int, np.ndarray] | None]) -> dict:
+    """Range, heading (`scan_errors` of each scan), trajectory and map errors against the
+    input's ground truth."""
     folder = scans.ground_truth
     if folder is None:
         return {"available": False, "reason": f"no ground_truth/ in {scans.path}"}
     errors: dict = {"available": True}
-    kept = [scan for scan in kept if truth_path(scans.path, scan.index).is_file()]
-    if kept:  # the scans of this run (not those of a resumed map)
-        ranges, headings, matched, total = [], [], 0, 0
-        for scan in kept:
-            truth = ScanTruth.load(truth_path(scans.path, scan.index))
-            error, count = evaluation.range_errors(scan, truth, scans.model)
-            ranges.append(error)
-            matched, total = matched + error.size, total + count
-            headings.append(evaluation.heading_errors(scan, truth))
+    checks = [check for check in checks if check is not None]
+    if checks:  # the scans of this run (not those of a resumed map)
+        ranges, counts, headings = zip(*checks, strict=True)
+        matched, total = sum(r.size for r in ranges), sum(counts)
         errors["range_m"] = evaluation.statistics(np.concatenate(ranges)) | {
             "matched": matched / total if total else math.nan}
         errors["heading_rad"] = evaluation.statistics(np.concatenate(headings))

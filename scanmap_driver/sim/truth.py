@@ -61,7 +61,7 @@ class ScanTruth:
     odom_start: np.ndarray
     odom_end: np.ndarray
     laser: dict[str, np.ndarray]
-    laser_mask: np.ndarray  # (F, H, W) bool
+    laser_mask: np.ndarray  # (F, H, W) bool; (0, 0, 0) when loaded without it
 
     @classmethod
     def from_frames(cls, plan: ScanPlan, frames: list[FrameTruth],
@@ -93,6 +93,9 @@ class ScanTruth:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the truth as `.npz` (atomically)."""
+        if self.laser_mask.ndim != 3 or not self.laser_mask.shape[0] == len(self.frame_time):
+            raise RecordingError(f"{path}: the truth has no laser mask for its "
+                                 f"{len(self.frame_time)} frames (loaded with mask=False?)")
         height, width = self.laser_mask.shape[1:]
         save_npz(path, format_version=np.array(FORMAT_VERSION), frame_time=self.frame_time,
                  frame_heading=self.frame_heading, frame_pose=self.frame_pose,
@@ -103,24 +106,30 @@ class ScanTruth:
                  **{f"laser_{key}": value for key, value in self.laser.items()})
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> ScanTruth:
-        """Read a scan's truth; a malformed file raises RecordingError naming it."""
+    def load(cls, path: str | os.PathLike[str], *, mask: bool = True) -> ScanTruth:
+        """Read a scan's truth; a malformed file raises RecordingError naming it.
+
+        mask=False leaves the laser pixel mask out (half the reading time; range and
+        heading errors do not need it)."""
         names = ("format_version", "frame_time", "frame_heading", "frame_pose", "pose_start",
                  "pose_end", "odom_start", "odom_end", "laser_mask", "image_size",
                  *(f"laser_{key}" for key in _LASER))
-        arrays = load_npz(path, RecordingError, required=names)
+        arrays = load_npz(path, RecordingError, required=names,
+                          skip=() if mask else ("laser_mask",))
         if int(arrays["format_version"]) != FORMAT_VERSION:
             raise RecordingError(f"{path}: format_version {int(arrays['format_version'])} "
                                  f"is not {FORMAT_VERSION}")
         width, height = (int(x) for x in arrays["image_size"])
-        mask = np.unpackbits(arrays["laser_mask"], axis=2, count=width).astype(bool)
-        if mask.shape[1] != height:
-            raise RecordingError(f"{path}: laser_mask does not match image_size")
+        pixels = np.zeros((0, 0, 0), bool)
+        if mask:
+            pixels = np.unpackbits(arrays["laser_mask"], axis=2, count=width).astype(bool)
+            if pixels.shape[1] != height:
+                raise RecordingError(f"{path}: laser_mask does not match image_size")
         return cls(frame_time=arrays["frame_time"], frame_heading=arrays["frame_heading"],
                    frame_pose=arrays["frame_pose"], pose_start=arrays["pose_start"],
                    pose_end=arrays["pose_end"], odom_start=arrays["odom_start"],
                    odom_end=arrays["odom_end"],
-                   laser={key: arrays[f"laser_{key}"] for key in _LASER}, laser_mask=mask)
+                   laser={key: arrays[f"laser_{key}"] for key in _LASER}, laser_mask=pixels)
 
 
 def truth_path(recording: str | os.PathLike[str], index: int) -> Path:

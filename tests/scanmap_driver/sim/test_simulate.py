@@ -9,6 +9,7 @@ import pytest
 
 from scanmap.cli import main
 from scanmap_driver import Scan, reference_scanner, triangulate
+from scanmap_driver.errors import RecordingError
 from scanmap_driver.recording import Recording
 from scanmap_driver.sim.raster import FLOOR, TruthRaster
 from scanmap_driver.sim.scene import load_scene
@@ -26,6 +27,19 @@ def recorded(tmp_path_factory):
     assert main(["simulate", "office", "--out", str(out), "--scans", "1", "--seed", "7",
                  "--lighting", "bright"]) == 0
     return out
+
+
+def test_truth_without_its_laser_mask_reads_the_rest_and_refuses_to_be_saved(recorded,
+                                                                            tmp_path):
+    whole = ScanTruth.load(truth_path(recorded, 0))
+    light = ScanTruth.load(truth_path(recorded, 0), mask=False)
+    assert light.laser_mask.size == 0
+    for key, value in whole.laser.items():
+        np.testing.assert_array_equal(light.laser[key], value)
+    np.testing.assert_array_equal(light.frame_pose, whole.frame_pose)
+    with pytest.raises(RecordingError, match="no laser mask"):
+        light.save(tmp_path / "truth.npz")
+    assert not (tmp_path / "truth.npz").exists()
 
 
 def test_the_recording_reads_back_with_its_truth(recorded):
