@@ -36,11 +36,12 @@ def test_reexports_driver_types():
     assert Scan is DriverScan
 
 
-def test_the_command_line_starts_without_open3d():
-    """Only simulating and ray-cast evaluation need Open3D (about 1 s to import): building
-    the command line (every command's options) must not load it."""
+def test_the_command_line_starts_without_open3d_or_the_optimisers():
+    """Only simulating and ray-cast evaluation need Open3D (about 1 s to import), only
+    calibration scipy.optimize (0.2 s): building the command line (every command's
+    options) must load neither."""
     code = ("import sys; from scanmap.cli import build_parser; build_parser(); "
-            "print('open3d' in sys.modules)")
+            "print('open3d' in sys.modules, 'scipy.optimize' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True)
-    assert result.stdout.strip() == "False"
+    assert result.stdout.split() == ["False", "False"]

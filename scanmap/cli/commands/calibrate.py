@@ -16,12 +16,6 @@ import re
 from pathlib import Path
 
 from scanmap_driver import CalibrationError, ScannerModel, reference_scanner
-from scanmap_driver.calibration import (
-    CharucoBoard,
-    Chessboard,
-    calibrate_camera,
-    write_opencv_yaml,
-)
 from scanmap_driver.files import read_json
 from scanmap_driver.scanner_model import FORMAT
 
@@ -78,6 +72,14 @@ def _squares(text: str) -> tuple[int, int]:
 
 
 def _camera(args: argparse.Namespace) -> int:
+    # The calibration package brings scipy.optimize (0.2 s): loaded when calibrating.
+    from scanmap_driver.calibration import (
+        CharucoBoard,
+        Chessboard,
+        calibrate_camera,
+        write_opencv_yaml,
+    )
+
     if args.board == "charuco":
         if args.marker_size is None:
             raise CalibrationError("--marker-size: required with --board charuco")
