@@ -45,10 +45,13 @@ def drop_stale_caches(packages: tuple[Path, ...] = PACKAGES) -> int:
         return 0
     stale = [f for package in packages for pattern in ("*.nbi", "*.nbc")
              for f in package.rglob(pattern)]
-    for f in stale:
-        f.unlink(missing_ok=True)
-    stamp.parent.mkdir(exist_ok=True)
-    stamp.write_text(digest.hexdigest())
+    try:
+        for f in stale:
+            f.unlink(missing_ok=True)
+        stamp.parent.mkdir(exist_ok=True)
+        stamp.write_text(digest.hexdigest())
+    except PermissionError:  # a read-only install: Numba caches in the user's folder
+        return 0
     return len(stale)
 
 

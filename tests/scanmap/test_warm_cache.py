@@ -30,3 +30,18 @@ def test_cached_kernels_go_when_any_source_changes_and_stay_otherwise(tmp_path):
     (callee / "sub" / "planes.py").write_text("def fit(): return 2\n")  # only the callee
     assert drop_stale_caches((caller, callee)) == 1
     assert not fresh.exists()
+
+
+def test_a_read_only_install_is_left_alone(tmp_path, monkeypatch):
+    """Where the package folder is not writable (Numba then caches in the user's folder)
+    the warm-up goes on without a stamp instead of failing."""
+    package = tmp_path / "installed"
+    package.mkdir()
+    (package / "a.py").write_text("x = 1\n")
+
+    def refuse(*args, **kwargs):
+        raise PermissionError("read-only")
+
+    monkeypatch.setattr(Path, "mkdir", refuse)
+    assert drop_stale_caches((package,)) == 0
+    assert not (package / "__pycache__").exists()
