@@ -21,9 +21,10 @@ floor is not where it must be), is a DROP_OFF; the drop-off spreads up to `drop_
 through cells without any hit that touch no hit but the drop-off's own and do not lie
 between two floor cells at most `max_hole` apart (the shadow of the rim: not the gaps
 between the laser's samples, nor the shadow of an object standing beside the
-drop-off), and one cell on up to the rim but for the gaps between floor samples (below),
-so its edge is within a cell of the last floor seen. DROP_OFF is never free and lethal
-in the costmap.
+drop-off), and from that shadow one cell on up to the rim but for the gaps between floor
+samples (below), so its edge is within a cell of the last floor seen (the cells showing
+the drop-off themselves are where it is: no cell on from them). DROP_OFF is never free
+and lethal in the costmap.
 
 No return is not free: a cell is FREE only where the floor was seen - a floor hit in
 the cell - or is known otherwise: the robot's footprint at the poses it scanned from (it
@@ -306,6 +307,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
     drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
                           robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
+    seeds = drop.copy()
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
     if drop.any():  # through the rim's shadow: no hit there or next to it but the drop's
@@ -315,11 +317,14 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         shadow &= ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
                                    floor_height, round(params.max_hole / res),
                                    robot.step_height)  # nor between floor samples
-        drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool), mask=shadow,
-                                       iterations=max(round(params.drop_reach / res), 1)) | drop
-        drop |= ndimage.binary_dilation(drop, np.ones((3, 3), bool)) & (layers.nlev == 0) \
-            & ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
-                               floor_height, 2, robot.step_height)  # and up to the rim
+        spread = ndimage.binary_dilation(drop, np.ones((3, 3), bool), mask=shadow,
+                                         iterations=max(round(params.drop_reach / res), 1))
+        drop |= spread
+        # and from the shadow up to the rim (where the drop-off shows itself, it is there)
+        drop |= ndimage.binary_dilation(spread & ~seeds, np.ones((3, 3), bool)) \
+            & (layers.nlev == 0) & ~nk.interpolated(is_floor | stood | holes,
+                                                    (layers.nlev > 0) | drop, floor_height,
+                                                    2, robot.step_height)
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
