@@ -66,7 +66,7 @@ rays ending much farther away, beyond the 4 m range or where nothing returns. In
 simulator's office one scan sees a median 35 % of the band in floor cells 1-1.5 m away,
 21 % at 2-3 m, so almost none is FREE although its floor was hit. Scans from other
 places cross the same cells at other heights: after the 24 scans round the office table
-93 % of the floor is FREE. The rule stays: a cell whose band was mostly never looked at
+92 % of the floor is FREE. The rule stays: a cell whose band was mostly never looked at
 may hold anything there, and a map of several scans (examples/planner.py) is the cure.
 """
 
