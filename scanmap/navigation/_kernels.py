@@ -450,7 +450,8 @@ def _spread_overhangs(hanging: np.ndarray, gaps: np.ndarray, state: np.ndarray,
 
 @njit(cache=True, nogil=True)
 def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
-                  floor_height: np.ndarray, step: float, height: float, z_min: float,
+                  counted: np.ndarray, floor_height: np.ndarray, step: float,
+                  height: float, z_min: float,
                   mask_dz: float, coverage: float,
                   reach: int, thin: float, origin_x: float, origin_y: float, res: float,
                   state: np.ndarray, points: np.ndarray, band_logodds: np.ndarray,
@@ -460,14 +461,15 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
 
     Heights no ray saw anywhere in the window (above the camera) are left out: nothing
     can be known there. A cell without anything in its band is FREE when rays saw at
-    least `coverage` of the band's height bins free, and none of the heights it has not
-    seen is suspect: within two bins of an obstacle in a neighbouring cell, or of an
-    overhanging board within `reach` cells through cells that have not seen those heights
-    either but saw lower ones. A board is the lowest level in its cell, at most `thin`
-    thick, with free space seen under it at least a bin below its lowest hit (a ray that
-    ends on a box's top marks only the heights above the hit), and `_plates` decides
-    whether it overhangs. A cell under a table top that rays reached only under the top
-    is thus not FREE, however much of the band they saw there.
+    least `coverage` of the band's height bins free (the bins in `counted`: its own
+    `seen`, or on known floor its neighbours' too; itself at least one), and none of the
+    heights it has not seen is suspect: within two bins of an obstacle in a neighbouring
+    cell, or of an overhanging board within `reach` cells through cells that have not
+    seen those heights either but saw lower ones. A board is the lowest level in its
+    cell, at most `thin` thick, with free space seen under it at least a bin below its
+    lowest hit (a ray that ends on a box's top marks only the heights above the hit), and
+    `_plates` decides whether it overhangs. A cell under a table top that rays reached
+    only under the top is thus not FREE, however much of the band they saw there.
     """
     ny, nx = nlev.shape
     occupied = np.zeros((ny, nx), np.uint64)  # band heights held by obstacles, per cell
@@ -524,8 +526,8 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
                 for xx in range(max(x - 1, 0), min(x + 2, nx)):
                     suspect |= _widen(occupied[yy, xx])
             covered[y, x] = unseen[y, x] & overhang[y, x] != 0
-            if _popcount(band & seen[y, x]) >= max(coverage * _popcount(band), 1.0) \
-                    and unseen[y, x] & suspect == 0:
+            if _popcount(band & counted[y, x]) >= max(coverage * _popcount(band), 1.0) \
+                    and band & seen[y, x] != 0 and unseen[y, x] & suspect == 0:
                 state[y, x] = FREE
 
 

@@ -348,18 +348,16 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     band_logodds = np.empty((ny, nx), np.float32)
     covered = np.zeros((ny, nx), np.bool_)
     pool = round(params.coverage_reach / res)
-    nk.classify_band(layers.levels, layers.nlev, layers.seen, floor_height,
-                  robot.step_height, robot.height, layers.z_min, layers.mask_dz,
-                  params.min_coverage if pool == 0 else 0.0,
-                  round(params.overhang_reach / res), params.overhang_thickness,
-                  layers.origin[0], layers.origin[1], res, state, points, band_logodds, covered)
+    counted = layers.seen
     if pool:  # known floor off a drop-off's rim: the coverage over it and its neighbours
         known = ndimage.binary_dilation(is_floor, np.ones((3, 3), bool)) | holes
         known &= ~ndimage.binary_dilation(drop, np.ones((3, 3), bool))
-        free = state == FREE
-        seen = np.where(known, _pooled(layers.seen, pool), layers.seen)[free]
-        short = _band_coverage(seen, floor_height[free], robot, layers) < params.min_coverage
-        state[np.nonzero(free)[0][short], np.nonzero(free)[1][short]] = UNKNOWN
+        counted = np.where(known, _pooled(layers.seen, pool), layers.seen)
+    nk.classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height,
+                     robot.step_height, robot.height, layers.z_min, layers.mask_dz,
+                     params.min_coverage, round(params.overhang_reach / res),
+                     params.overhang_thickness, layers.origin[0], layers.origin[1], res,
+                     state, points, band_logodds, covered)
     state[(state == FREE) & unlit] = UNKNOWN
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
@@ -442,24 +440,6 @@ def _pooled(seen: np.ndarray, reach: int) -> np.ndarray:
         for dx in range(2 * reach + 1):
             out |= padded[dy:dy + ny, dx:dx + nx]
     return out
-
-
-def _band_coverage(seen: np.ndarray, floor_height: np.ndarray, robot: RobotShape,
-                   layers: CellLayers) -> np.ndarray:
-    """Share of the robot band's height bins (those some ray saw in the window) in `seen`."""
-    floor_height = floor_height.astype(np.float64)  # as the kernel adds the heights
-    with np.errstate(invalid="ignore"):
-        low = np.clip(np.floor((floor_height + robot.step_height - layers.z_min)
-                               / layers.mask_dz), 0, 63)
-        high = np.clip(np.floor((floor_height + robot.height - 1e-6 - layers.z_min)
-                                / layers.mask_dz), 0, 63)
-    low = np.nan_to_num(low, nan=63).astype(np.uint64)
-    high = np.nan_to_num(high, nan=0).astype(np.uint64)
-    one, full = np.uint64(1), np.uint64(0xFFFFFFFFFFFFFFFF)
-    top = np.where(high >= 63, full, (one << np.minimum(high + one, np.uint64(63))) - one)
-    band = top & ~((one << low) - one) & np.bitwise_or.reduce(layers.seen, axis=None)
-    count = np.bitwise_count(band)
-    return np.where(count > 0, np.bitwise_count(band & seen) / np.maximum(count, 1), 0.0)
 
 
 def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:

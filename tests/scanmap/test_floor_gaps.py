@@ -4,8 +4,6 @@ counts exactly the bins they saw, and without pooling gives the kernel's own rul
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -59,19 +57,42 @@ def test_pooled_seen_spreads_each_bin_to_the_neighbours_only():
     assert (pooled[~expected] == 0).all()
 
 
-def test_band_coverage_counts_the_band_bins_seen():
+@pytest.mark.parametrize("pooled", [False, True])
+def test_band_coverage_counts_the_band_bins_seen(pooled):
+    # Every band bin observable; a cell counts half of them (its own or its neighbours'):
+    # FREE at min_coverage 0.5, UNKNOWN with one bin fewer
     grid = HeightGrid(GridConfig())
     layers = grid.layers((0.0, 0.0, 0.15, 0.15))
     robot = RobotShape()
     lo = int(np.floor((robot.step_height - layers.z_min) / layers.mask_dz))
     hi = int(np.floor((robot.height - 1e-6 - layers.z_min) / layers.mask_dz))
     band = sum(1 << b for b in range(lo, hi + 1))
-    half = sum(1 << b for b in range(lo, lo + (hi - lo + 1) // 2))
-    layers = replace(layers, seen=np.full(layers.shape, band, np.uint64))
-    seen = np.full(layers.shape, half, np.uint64)
-    coverage = floor_module._band_coverage(seen, np.zeros(layers.shape, np.float32), robot,
-                                           layers)
-    assert coverage == pytest.approx(((hi - lo + 1) // 2) / (hi - lo + 1))
+    seen = np.full(layers.shape, band, np.uint64)
+    for bins, expected in (((hi - lo + 1 + 1) // 2, floor_module.FREE),
+                           ((hi - lo + 1 + 1) // 2 - 1, floor_module.UNKNOWN)):
+        half = sum(1 << b for b in range(lo, lo + bins))
+        counted = np.full(layers.shape, half, np.uint64)
+        if not pooled:
+            seen = counted.copy()
+            seen[0, 0] = band  # the heights observable in the window
+        state = np.empty(layers.shape, np.uint8)
+        points = np.empty((*layers.shape, 2), np.float32)
+        logodds = np.empty(layers.shape, np.float32)
+        covered = np.zeros(layers.shape, bool)
+        nk.classify_band(layers.levels, layers.nlev, seen, counted,
+                         np.zeros(layers.shape, np.float32), robot.step_height, robot.height,
+                         layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
+                         layers.origin[1], layers.resolution, state, points, logodds, covered)
+        inner = state[1:, 1:] if not pooled else state
+        assert (inner == expected).all(), (bins, hi - lo + 1)
+    if pooled:  # the cell itself must have seen one of the band's bins
+        seen = np.where(np.eye(*layers.shape, dtype=bool), np.uint64(0), np.uint64(band))
+        nk.classify_band(layers.levels, layers.nlev, seen, np.full(layers.shape, band, np.uint64),
+                         np.zeros(layers.shape, np.float32), robot.step_height, robot.height,
+                         layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
+                         layers.origin[1], layers.resolution, state, points, logodds, covered)
+        assert (state[np.eye(*layers.shape, dtype=bool)] == floor_module.UNKNOWN).all()
+        assert (state[~np.eye(*layers.shape, dtype=bool)] == floor_module.FREE).all()
 
 
 def test_without_pooling_the_coverage_rule_is_the_kernels(monkeypatch):
