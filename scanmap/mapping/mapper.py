@@ -202,12 +202,9 @@ class Mapper:
         self._position = (float(last[0, 3]), float(last[1, 3]))
         self._recent.append((points, scan.range_sigma))
         if self.loop_closer is not None:
-            cell = _one_per_voxel(points, c.grid.resolution)
-            to_base = invert_pose(pose)
-            self._contributions[-1] = (
-                transform_points(to_base, points[cell]).astype(np.float32),
-                transform_points(to_base, origins[cell]).astype(np.float32),
-                float(scan.time.max()))
+            self._contributions[-1] = scan_contribution(points, origins, pose,
+                                                        float(scan.time.max()),
+                                                        c.grid.resolution)
         if c.keep_points is not None:
             keep = _one_per_voxel(points, c.keep_points)
             self._kept.append((points[keep].astype(np.float32), scan.colors[keep]))
@@ -396,6 +393,18 @@ def _split_kept(loops: dict[str, np.ndarray]
     origins = iter(np.split(loops["kept_origins"], bounds))
     stamps = iter(loops["kept_stamps"].tolist())
     return [(next(points), next(origins), next(stamps)) if f else None for f in fused]
+
+
+def scan_contribution(points: np.ndarray, origins: np.ndarray, pose: np.ndarray,
+                      stamp: float, resolution: float
+                      ) -> tuple[np.ndarray, np.ndarray, float]:
+    """What a rebuild keeps of a fused scan: one ray per grid-sized voxel, its (point, ray
+    origin) in base_link (float32, placed again at the scan's corrected pose), and the
+    scan's time. points, origins: the scan's rays in map at `pose`."""
+    cell = _one_per_voxel(points, resolution)
+    to_base = invert_pose(pose)
+    return (transform_points(to_base, points[cell]).astype(np.float32),
+            transform_points(to_base, origins[cell]).astype(np.float32), stamp)
 
 
 def rebuild_grid(config: GridConfig, poses: np.ndarray,
