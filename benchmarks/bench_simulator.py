@@ -28,7 +28,8 @@ from scanmap_driver.sim.camera_effects import SimCameraConfig
 from scanmap_driver.sim.geometry import NO_HIT, plane_distance
 from scanmap_driver.sim.hitmap import hit_map
 from scanmap_driver.sim.laser_stripe import head_poses
-from scanmap_driver.sim.render import LIGHTING, LaserAppearance, Renderer
+from scanmap_driver.sim.render import LaserAppearance, Renderer
+from scanmap_driver.sim.scene import LIGHTING
 from scanmap_driver.sim.simulate import lit_scene, simulate_recording
 
 
