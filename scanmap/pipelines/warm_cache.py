@@ -21,14 +21,13 @@ import tempfile
 import time
 from pathlib import Path
 
-import scanmap
 import scanmap_driver
 from scanmap.mapping import Mapper
 from scanmap.pipelines.offline import map_to_folder
 from scanmap_driver import reference_scanner
 from scanmap_driver.sim import builtin_scene, simulate_recording
 
-PACKAGES = (Path(scanmap.__file__).parent, Path(scanmap_driver.__file__).parent)
+PACKAGES = (Path(__file__).resolve().parents[1], Path(scanmap_driver.__file__).parent)
 STAMP = "kernel-sources.sha256"
 
 
