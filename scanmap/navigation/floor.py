@@ -155,6 +155,7 @@ class FloorConfig:
     slope_reach: float = 0.1
     drop_reach: float = 0.5
     max_hole: float = 0.3
+    max_gap: float = 0.3
     floor_probe: float = 0.1
 
 
@@ -335,13 +336,35 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
                        floor_height, drop, round(params.max_hole / res), robot.step_height)
     # No return is not free: the floor seen (a hit there), a gap, stood on, assumed, or
-    # between two such cells
-    seen_floor = nk.interpolated(is_floor | holes | stood | assumed, (layers.nlev > 0) | drop,
-                                 floor_height, 2, robot.step_height)
+    # between two such cells: at most three cells apart anywhere, at most max_gap apart
+    # (the spacing of the laser's lines) away from any sign of a hole
+    known_floor = is_floor | holes | stood | assumed
+    informative = (layers.nlev > 0) | drop
+    # A cell farther than half a span from every known or hit cell lies on no such span:
+    # passed to `interpolated` as a hit, it is skipped (the result is the same)
+    apart = distance_transform(known_floor | informative)[0]
+    seen_floor = nk.interpolated(known_floor, informative | (apart > 1.5), floor_height, 2,
+                                 robot.step_height)
     drop |= _sunk(bare & ~holes & ~is_floor & ~stood & ~assumed, layers, is_floor, lowest,
                   drop, round(params.max_hole / res), params.plane_tolerance)
+    gap = round(params.max_gap / res)
+    lines = np.zeros((ny, nx), bool)
+    if gap > 2:
+        wide = apart > 0.5 * (gap + 1)  # unobserved more than max_gap across
+        with np.errstate(invalid="ignore"):  # the feet of surfaces standing on the floor
+            foot = (layers.nlev > 0) & ~known_floor & (np.abs(
+                layers.levels[:, :, 0, gk.LO] - floor_height) <= robot.step_height)
+        lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap,
+                                robot.step_height) & ~seen_floor & ~foot
+        if lines.any():  # not within max_gap of a sign of a hole, nor of a wider gap
+            # through cells without a hit (not of the space behind a wall)
+            lines &= distance_transform(drop | _below_model(
+                layers, is_floor, lowest, params.plane_tolerance))[0] > gap
+            lines &= ~ndimage.binary_dilation(wide, np.ones((3, 3), bool), iterations=gap,
+                                              mask=~(known_floor | informative))
+        seen_floor |= lines
     unlit = (probed & bare) | steep
-    unlit &= ~is_floor & ~stood & ~assumed & ~holes
+    unlit &= ~is_floor & ~stood & ~assumed & ~holes & ~lines
     unlit |= ~seen_floor
     state = np.empty((ny, nx), np.uint8)
     points = np.empty((ny, nx, 2), np.float32)
@@ -350,7 +373,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     pool = round(params.coverage_reach / res)
     counted = layers.seen
     if pool:  # known floor off a drop-off's rim: the coverage over it and its neighbours
-        known = ndimage.binary_dilation(is_floor, np.ones((3, 3), bool)) | holes
+        known = ndimage.binary_dilation(is_floor, np.ones((3, 3), bool)) | holes | lines
         known &= ~ndimage.binary_dilation(drop, np.ones((3, 3), bool))
         counted = np.where(known, _pooled(layers.seen, pool), layers.seen)
     nk.classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height,
@@ -374,14 +397,12 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
           drop: np.ndarray, size: int, tolerance: float) -> np.ndarray:
     """The patches of `dark` (no hit in or around them, not a gap) at most `size` cells on
     each side, not at the window's edge nor next to a drop-off (its shadow is the drop's
-    own rule), with a surface wholly below the floor model (its lowest level more than
-    `tolerance` below the lowest floor around) within two cells: the floor goes down into
-    a small patch nothing returned from (a hole's far wall, seen only at its top). Not
-    the cells around the patch: a hit or floor near, they may be floor (the hole's extent
-    is not known there), so they stay UNKNOWN."""
+    own rule), with a surface wholly below the floor model (`_below_model`) within two
+    cells: the floor goes down into a small patch nothing returned from (a hole's far
+    wall, seen only at its top). Not the cells around the patch: a hit or floor near, they
+    may be floor (the hole's extent is not known there), so they stay UNKNOWN."""
     ny, nx = dark.shape
-    with np.errstate(invalid="ignore"):
-        low = (layers.nlev > 0) & ~is_floor & (layers.levels[:, :, 0, gk.HI] < lowest - tolerance)
+    low = _below_model(layers, is_floor, lowest, tolerance)
     out = np.zeros((ny, nx), bool)
     if not low.any():
         return out
@@ -396,6 +417,16 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
         if near[rows, cols][patch].any() and not near_drop[rows, cols][patch].any():
             out[rows, cols] |= patch
     return out
+
+
+def _below_model(layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray,
+                 tolerance: float) -> np.ndarray:
+    """Cells with hits, not floor, whose lowest level lies wholly more than `tolerance`
+    below the lowest floor around them: a surface below the floor model (a hole's far
+    wall, seen only at its top, less than a step down)."""
+    with np.errstate(invalid="ignore"):
+        return (layers.nlev > 0) & ~is_floor \
+            & (layers.levels[:, :, 0, gk.HI] < lowest - tolerance)
 
 
 def _lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:
