@@ -369,6 +369,15 @@ def _lowest_bit(bits: np.uint64) -> int:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _highest_bit(bits: np.uint64) -> int:
+    """Index of the highest set bit of a non-zero mask."""
+    high = 63
+    while not (bits >> np.uint64(high)) & np.uint64(1):
+        high -= 1
+    return high
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _above_lowest_seen(seen: np.uint64) -> np.uint64:
     """Heights above the lowest height seen: where a board that has free space seen under
     it can continue unseen (under a table top), unlike heights below everything a cell
@@ -390,10 +399,12 @@ def _below(bits: np.uint64, margin: int) -> np.uint64:
 @njit(cache=True, nogil=True)
 def _plates(boards: np.ndarray, occupied: np.ndarray) -> np.ndarray:
     """The boards (their heights, widened) that overhang: they continue sideways at the
-    same heights in at least two of the 8 neighbouring cells (a table top's rim does; a
-    stray piece of a wall face does not), and no neighbour holds anything more than two
-    bins below them (the side of a box under its top, the rest of a wall under a piece of
-    it that rays grazing the face left apart)."""
+    same heights in at least two of the 8 neighbouring cells (a neighbour's board holds
+    this one's middle height: a table top's rim does; a stray piece of a wall face, or a
+    sloping line of hits that only touches the next cell's heights at an edge, does not),
+    and no neighbour holds anything more than two bins below them (the side of a box
+    under its top, the rest of a wall under a piece of it that rays grazing the face left
+    apart)."""
     ny, nx = boards.shape
     out = np.zeros((ny, nx), np.uint64)
     for y in range(ny):
@@ -401,11 +412,13 @@ def _plates(boards: np.ndarray, occupied: np.ndarray) -> np.ndarray:
             if not boards[y, x]:
                 continue
             below = _below(boards[y, x], 2)
+            middle = np.uint64(1) << np.uint64((_lowest_bit(boards[y, x])
+                                                + _highest_bit(boards[y, x])) // 2)
             count = 0
             supported = False
             for yy in range(max(y - 1, 0), min(y + 2, ny)):
                 for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                    if (yy != y or xx != x) and boards[yy, xx] & boards[y, x]:
+                    if (yy != y or xx != x) and boards[yy, xx] & middle:
                         count += 1
                     supported |= occupied[yy, xx] & below != 0
             if count >= 2 and not supported:
