@@ -22,10 +22,16 @@ optimisation), and `ate_loops_at_reference_m`: the same graph with every loop me
 exactly (`loops_at_reference`), which tells the loops' own errors from the drift between
 them. Run: `.venv/bin/python -m benchmarks.bench_loop_closure`.
 
+Per log also the rebuilds the Mapper does after each optimisation (`GridRebuilder`: from
+the checkpoint of its previous rebuild before the first scan that moved more than a
+quarter of a cell): how many, their median and longest wall time, and the mean share of
+the scans they fused again (`rebuild_redone_share`).
+
 A last row times the rebuild for the 3-D scanner: the simulated office's ideal scans
 kept as the Mapper keeps them (`scan_contribution`: one ray per 5 cm voxel, about 4,300
 a scan), cycled to REBUILD_SCANS scans, as seconds per 1000 scans (the issue's budget:
-under 1 s).
+under 1 s), whole (`rebuild_grid`) and by a `GridRebuilder` after a loop has moved the
+last quarter of the scans (`last_quarter_moved_s`).
 
 The figures of the last whole run are in `benchmarks/results/latest.md`. KISS-SLAM has
 closed no loop on these extruded 2-D scans (on ACES none with local maps split every 5,
@@ -60,26 +66,34 @@ from benchmarks.isolation import PeerFailed, run_isolated
 from scanmap.evaluation.trajectory_errors import ate_rmse
 from scanmap.graph import Edge, LoopCloser, LoopClosureConfig, PoseGraph
 from scanmap.grid.height_grid import GridConfig
-from scanmap.mapping.mapper import rebuild_grid, scan_contribution
+from scanmap.mapping.mapper import GridRebuilder, rebuild_grid, scan_contribution
 from scanmap.registration import ScanOdometry
-from scanmap_driver.transforms import invert_pose
+from scanmap_driver.transforms import invert_pose, se2_to_pose
 
 LOGS = ("intel", "aces", "fhw", "freiburg-101", "belgioioso", "edmonton", "acapulco")
 
 
-def run_loop_closure(seq: Sequence, config: LoopClosureConfig | None = None
+def run_loop_closure(seq: Sequence, config: LoopClosureConfig | None = None,
+                     versions: list[np.ndarray] | None = None
                      ) -> tuple[np.ndarray, list[float], LoopCloser]:
-    """Ours with loop closure: (corrected poses, seconds per scan, the closer)."""
+    """Ours with loop closure: (corrected poses, seconds per scan, the closer).
+    versions: gets the corrected poses of every scan so far each time a scan finds a new
+    optimisation published (what the Mapper rebuilds its grid at), and the last ones."""
     registration = ScanOdometry(seq.config, initial_pose=seq.reference[0])
     closer = LoopCloser(config or LoopClosureConfig(enabled=True), seq.config)
-    seconds = []
+    seconds, seen = [], 0
     try:
         for scan in seq.scans:
             start = time.perf_counter()
             result = registration.register(scan)
             closer.add(result.pose, result, scan.points)
             seconds.append(time.perf_counter() - start)
+            if versions is not None and closer.version != seen:
+                seen = closer.version
+                versions.append(closer.corrected_poses())
         closer.finish()
+        if versions is not None:
+            versions.append(closer.corrected_poses())
         return closer.corrected_poses(), seconds, closer
     finally:
         closer.close()
@@ -119,7 +133,9 @@ def run_kiss_slam(seq: Sequence, split: float = 10.0) -> tuple[np.ndarray, list[
 
 def compare(seq: Sequence) -> dict:
     """One row: ours with loop closure, ours without and KISS-SLAM as peers."""
-    poses, seconds, closer = run_loop_closure(seq)
+    versions: list[np.ndarray] = []
+    poses, seconds, closer = run_loop_closure(seq, versions=versions)
+    rebuilds = incremental_rebuilds(seq, versions)
     row = {"stage": "loop closure", "method": "ours: ScanOdometry + LoopCloser",
            "settings": f"{seq.name}, {len(seq.scans)} scans", **_scores(poses, seconds, seq),
            "ate_unaligned_m": ate_rmse(poses, seq.reference, "none"),
@@ -129,7 +145,10 @@ def compare(seq: Sequence) -> dict:
            "optimise_median_s": float(np.median(closer.optimise_seconds))
            if closer.optimise_seconds else None,
            "optimise_max_s": max(closer.optimise_seconds, default=None),
-           "rebuild_s": rebuild_seconds(seq, poses)}
+           "rebuild_s": rebuild_seconds(seq, poses),
+           "rebuilds": len(rebuilds), "rebuild_median_s": float(np.median(rebuilds[:, 0])),
+           "rebuild_max_s": float(rebuilds[:, 0].max()),
+           "rebuild_redone_share": float(rebuilds[:, 1].mean())}
     plain, plain_seconds = run_ours(seq)
     peers = {"ours without loop closure": {**_scores(plain, plain_seconds, seq),
                                            "ate_unaligned_m": ate_rmse(plain, seq.reference,
@@ -164,16 +183,36 @@ def loops_at_reference(closer: LoopCloser, reference: np.ndarray) -> np.ndarray:
     return graph.optimise(closer.corrected_poses(), closer.config.loop_kernel)
 
 
-def rebuild_seconds(seq: Sequence, poses: np.ndarray) -> float:
-    """Wall time of `rebuild_grid` over every scan of `seq` at `poses` (laser 0.3 m up)."""
+def _kept_2d(seq: Sequence) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """Each scan of `seq` as a rebuild keeps it (every point, the laser 0.3 m up)."""
     contributions = []
     for scan in seq.scans:
         points = scan.points.astype(np.float32)
         contributions.append((points, np.broadcast_to(np.float32([0.0, 0.0, 0.3]),
                                                       points.shape), float(scan.stamp)))
+    return contributions
+
+
+def rebuild_seconds(seq: Sequence, poses: np.ndarray) -> float:
+    """Wall time of `rebuild_grid` over every scan of `seq` at `poses` (laser 0.3 m up)."""
+    contributions = _kept_2d(seq)
     start = time.perf_counter()
     rebuild_grid(GridConfig(max_range=seq.max_range), poses, contributions)
     return time.perf_counter() - start
+
+
+def incremental_rebuilds(seq: Sequence, versions: list[np.ndarray]) -> np.ndarray:
+    """(V, 2) per optimisation in `versions` (`run_loop_closure`), in turn: the wall time
+    of a `GridRebuilder` rebuild at its poses, as the Mapper does after each, and the
+    share of its scans that rebuild fused again (the rest it took from its checkpoints)."""
+    contributions = _kept_2d(seq)
+    rebuilds = GridRebuilder(GridConfig(max_range=seq.max_range))
+    out = []
+    for poses in versions:
+        start = time.perf_counter()
+        rebuilds.rebuild(poses, contributions[:len(poses)])
+        out.append((time.perf_counter() - start, 1.0 - rebuilds.reused / len(poses)))
+    return np.array(out).reshape(-1, 2)
 
 
 REBUILD_SCANS = 200
@@ -200,10 +239,25 @@ def rebuild_3d(scans: int = REBUILD_SCANS) -> dict:
         rebuild_grid(GridConfig(), poses, kept)
         seconds.append(time.perf_counter() - start)
     per_scan = float(np.median(seconds)) / scans
+    # A loop back to where the robot was three quarters of the way: the last quarter of
+    # the scans turns 0.5 deg about the scan there and shifts 5 cm; then back again.
+    pivot = poses[3 * scans // 4 - 1]
+    moved = poses.copy()
+    moved[3 * scans // 4:] = pivot @ se2_to_pose(0.05, 0.0, np.radians(0.5)) \
+        @ invert_pose(pivot) @ poses[3 * scans // 4:]
+    rebuilds = GridRebuilder(GridConfig())
+    rebuilds.rebuild(poses, kept)
+    after_loop = []
+    for k in range(4):
+        start = time.perf_counter()
+        rebuilds.rebuild(moved if k % 2 == 0 else poses, kept)
+        after_loop.append(time.perf_counter() - start)
     return {"stage": "loop closure", "method": "grid rebuild from kept rays (rebuild_grid)",
             "settings": f"sim office, 3-D scanner, {scans} scans ({len(set(cycle))} cycled), "
                         f"{int(np.mean([len(k[0]) for k in kept]))} rays a scan kept",
             "median_s": per_scan, "per_1000_scans_s": 1000 * per_scan, "budget_s": 1e-3,
+            "last_quarter_moved_s": float(np.median(after_loop)),
+            "last_quarter_moved_per_1000_scans_s": 1000 * float(np.median(after_loop)) / scans,
             "error": None, "error_unit": "", "peers": {}}
 
 

@@ -225,6 +225,12 @@ class HeightGrid:
         """Bytes held by the tile pools and the tile index."""
         return int(sum(a.nbytes for a in self._pools()) + self._tile_index.nbytes)
 
+    @property
+    def used_bytes(self) -> int:
+        """Bytes of the allocated tiles' records (what `copy` and `state` hold)."""
+        slots = max(len(self._coords), 1)
+        return int(sum(a.nbytes for a in self._pools()) * self.tile_count // slots)
+
     def _pools(self) -> tuple[np.ndarray, ...]:
         return (self._lev_f, self._lev_n, self._lev_flag, self._nlev, self._cells)
 
@@ -454,6 +460,23 @@ class HeightGrid:
             out["cells"] = out["cells"][..., :SAVED_CELL_FIELDS].copy()  # not the scratch
             if self._window_origin is not None:
                 out["window_origin"] = np.array(self._window_origin, np.float64)
+        return out
+
+    def copy(self) -> HeightGrid:
+        """An independent grid holding exactly what this one holds (its tiles with the
+        scratch of ray bundles, the scan times, where the robot stood), without spare
+        slots: inserting the same scans into both gives the same grid."""
+        out = HeightGrid(self.config)
+        with self._lock:
+            used = np.flatnonzero(self._coords[:, 0] >= 0)
+            out._set_pools([a[used] for a in self._pools()])
+            out._coords = self._coords[used]
+            out._tile_index[tuple(out._coords.T)] = np.arange(len(used), dtype=np.int32)
+            out.stamp = self.stamp
+            out._window_origin = self._window_origin
+            out._scan_times = list(self._scan_times)
+            out._stood = list(self._stood)
+            out._ray_key = self._ray_key
         return out
 
     @classmethod

@@ -1,4 +1,5 @@
-"""`rebuild_grid` (tiles reserved at once, a base map) against plain insertion scan by scan."""
+"""`rebuild_grid` (tiles reserved at once, a base map) against plain insertion scan by scan;
+`GridRebuilder` (resumes from its checkpoints) against `rebuild_grid`."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
-from scanmap.mapping.mapper import rebuild_grid
+from scanmap.mapping.mapper import GridRebuilder, rebuild_grid
 from scanmap_driver.transforms import se2_to_pose, transform_points
 
 
@@ -55,3 +56,95 @@ def assert_same(a: HeightGrid, b: HeightGrid) -> None:
     la, lb = a.layers(), b.layers()
     for name in ("levels", "counts", "nlev", "seen", "updated"):
         np.testing.assert_array_equal(getattr(la, name), getattr(lb, name), err_msg=name)
+
+
+def assert_same_stood(a: HeightGrid, b: HeightGrid) -> None:
+    assert_same(a, b)
+    np.testing.assert_array_equal(a.layers().stood, b.layers().stood)
+
+
+def moved(poses: np.ndarray, first: int, step: float) -> np.ndarray:
+    """The poses from `first` on turned by `step` rad about the pose before it and
+    shifted, as an optimisation moves the scans after a loop's older end."""
+    out = poses.copy()
+    pivot = poses[first - 1]
+    turn = pivot @ se2_to_pose(0.02, -0.01, step) @ np.linalg.inv(pivot)
+    out[first:] = turn @ poses[first:]
+    return out
+
+
+def test_a_rebuilder_with_no_tolerance_equals_rebuild_grid_after_every_optimisation(
+        ring_ideal):
+    config = GridConfig()
+    poses, kept = kept_rays(ring_ideal)
+    n = len(poses)
+    size = rebuild_grid(config, poses, kept).used_bytes
+    rebuilds = GridRebuilder(config, tolerance=0.0, ratio=0.0, max_bytes=3 * size)
+    for count, first, step in ((n - 6, 0, 0.0), (n - 3, n - 9, 0.01), (n, n - 4, -0.02),
+                               (n, 5, 0.01), (n, n, 0.0)):
+        poses = moved(poses, first, step) if 0 < first < n else poses
+        grid = rebuilds.rebuild(poses[:count], kept[:count])
+        assert_same_stood(grid, rebuild_grid(config, poses[:count], kept[:count]))
+        # The Mapper fuses later scans into the grid it got: the checkpoints stay apart.
+        grid.insert(transform_points(poses[0], kept[0][0]),
+                    transform_points(poses[0], kept[0][1]), 1e9)
+    assert rebuilds.reused == n  # nothing moved: nothing redone
+    assert 1 <= len(rebuilds._checkpoints) and \
+        sum(g.used_bytes for _, g in rebuilds._checkpoints) <= 3 * size
+
+
+def test_a_rebuilder_redoes_only_the_scans_after_the_first_that_moved(ring_ideal):
+    config = GridConfig()
+    poses, kept = kept_rays(ring_ideal)
+    rebuilds = GridRebuilder(config, tolerance=0.25, ratio=0.0, max_bytes=1 << 40)
+    rebuilds.rebuild(poses, kept)
+    # Scans 0..9 move by a tenth of a cell (kept where they were), from 12 on by more.
+    nudged = poses.copy()
+    nudged[:10, 0, 3] += 0.1 * config.resolution
+    later = moved(nudged, 12, 0.01)
+    grid = rebuilds.rebuild(later, kept)
+    reused = rebuilds.reused  # from its checkpoint before scan 12, the first that moved
+    assert reused == 12
+    placed = np.concatenate([poses[:reused], later[reused:]])
+    assert_same_stood(grid, rebuild_grid(config, placed, kept))
+    # A turn that moves the scan's farthest kept point by half a cell counts as moved.
+    reach = np.linalg.norm(kept[4][0], axis=1).max()
+    turned = placed.copy()
+    turned[4] = turned[4] @ se2_to_pose(0.0, 0.0, 0.5 * config.resolution / reach)
+    assert rebuilds._first_moved(turned, kept) == 4
+    turned[4] = placed[4] @ se2_to_pose(0.0, 0.0, 0.2 * config.resolution / reach)
+    assert rebuilds._first_moved(turned, kept) == len(kept)
+
+
+@pytest.mark.parametrize("window", [None, 12.0])
+def test_a_rebuilder_over_a_base_map_or_a_window_equals_rebuild_grid(ring_ideal, window):
+    config = GridConfig(window=window)
+    poses, kept = kept_rays(ring_ideal)
+    base = plain(HeightGrid(GridConfig()), poses[:10], kept[:10]).state() \
+        if window is None else None
+    rebuilds = GridRebuilder(config, base, tolerance=0.0, ratio=0.0, max_bytes=1 << 40)
+    rebuilds.rebuild(poses[10:], kept[10:])
+    later = moved(poses, 15, 0.01)[10:]
+    grid = rebuilds.rebuild(later, kept[10:])
+    assert rebuilds.reused == (0 if window else 5)
+    assert_same_stood(grid, rebuild_grid(config, later, kept[10:], base))
+
+
+def test_a_grid_copy_fuses_as_the_grid(ring_ideal):
+    config = GridConfig()
+    poses, kept = kept_rays(ring_ideal)
+    grid = rebuild_grid(config, poses[:8], kept[:8])
+    copy = grid.copy()
+    for g in (grid, copy):
+        plain(g, poses[8:], kept[8:])
+    assert_same_stood(copy, grid)
+    assert copy.memory_bytes <= grid.memory_bytes
+
+
+def test_a_rebuilder_keeps_no_checkpoint_that_would_cost_more_than_it_saves(ring_ideal):
+    poses, kept = kept_rays(ring_ideal)
+    rebuilds = GridRebuilder(GridConfig(), tolerance=0.0, ratio=1e9)
+    rebuilds.rebuild(poses, kept)
+    assert not rebuilds._checkpoints
+    rebuilds.rebuild(poses, kept)
+    assert rebuilds.reused == 0

@@ -17,14 +17,14 @@ from scanmap.navigation.obstacles import QueryStatus
 def test_queries_answer_from_the_old_map_until_the_rebuild_is_swapped_in(ring_ideal,
                                                                          monkeypatch):
     started, release = threading.Event(), threading.Event()
-    rebuild = mapper_module.rebuild_grid
+    rebuild = mapper_module.GridRebuilder.rebuild
 
-    def held(*args):
+    def held(self, *args):
         started.set()
         assert release.wait(120)
-        return rebuild(*args)
+        return rebuild(self, *args)
 
-    monkeypatch.setattr(mapper_module, "rebuild_grid", held)
+    monkeypatch.setattr(mapper_module.GridRebuilder, "rebuild", held)
     config = MapperConfig(loop_closure=LoopClosureConfig(enabled=True))
     mapper = Mapper(config=config, offline=True, initial_pose=ring_ideal[0].pose_start)
     scans = [s.scan for s in ring_ideal]
