@@ -228,8 +228,9 @@ class HeightGrid:
     @property
     def used_bytes(self) -> int:
         """Bytes of the allocated tiles' records (what `copy` and `state` hold)."""
-        slots = max(len(self._coords), 1)
-        return int(sum(a.nbytes for a in self._pools()) * self.tile_count // slots)
+        slots = len(self._coords)  # each slot holds a tile or is free
+        return int(sum(a.nbytes for a in self._pools()) * (slots - len(self._free))
+                   // max(slots, 1))
 
     def _pools(self) -> tuple[np.ndarray, ...]:
         return (self._lev_f, self._lev_n, self._lev_flag, self._nlev, self._cells)
