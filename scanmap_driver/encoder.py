@@ -30,12 +30,12 @@ result says why, and never carries a heading.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from numba import njit
-from scipy.special import ndtr
 
 from .errors import ScanError
 from .laser import check_frame
@@ -44,6 +44,7 @@ from .transforms import wrap_angle
 from .triangulation import pixel_rays
 
 COARSE_STEPS = 8  # candidate headings per sector in the coarse search
+SEARCH_STEP = 8  # px between the pixels that locate the disk before the full-resolution pass
 
 
 @dataclass(frozen=True)
@@ -139,37 +140,91 @@ def blurred_code(bits: np.ndarray, zero: float, angles: np.ndarray,
     reach = int(np.ceil(4.0 * np.max(sigma) / step)) + 1
     pos = (angles - zero) / step
     base = np.floor(pos).astype(np.int64)
-    out = np.zeros(np.broadcast(angles, sigma).shape)
+    sigma = np.broadcast_to(sigma, np.broadcast(angles, sigma).shape)
+    out = np.zeros(sigma.shape)
     for k in range(-reach, reach + 1):
         start = (base + k - pos) * step
-        weight = ndtr((start + step) / sigma) - ndtr(start / sigma)
+        weight = normal_cdf((start + step) / sigma) - normal_cdf(start / sigma)
         out += bits[(base + k) % n] * weight
     return out
 
 
-@lru_cache(maxsize=8)
+def normal_cdf(x: np.ndarray) -> np.ndarray:
+    """The standard normal CDF of every element (scipy.special.ndtr without scipy.special,
+    whose import costs 0.16 s of every command's start)."""
+    x = np.asarray(x, dtype=np.float64)
+    return _normal_cdf(np.ascontiguousarray(x).reshape(-1)).reshape(x.shape)
+
+
+@njit(cache=True, nogil=True)
+def _normal_cdf(x: np.ndarray) -> np.ndarray:
+    out = np.empty_like(x)
+    for i in range(x.size):
+        out[i] = 0.5 * math.erfc(-x[i] / math.sqrt(2.0))
+    return out
+
+
+_RING_LOCK = threading.Lock()
+
+
 def ring_geometry(model: ScannerModel, settings: EncoderConfig) -> RingGeometry:
-    """Pixels of the code ring, their angular bins, and the coarse templates (cached)."""
-    cam, enc = model.camera, model.encoder
-    u, v = np.meshgrid(np.arange(cam.width, dtype=np.float64),
-                       np.arange(cam.height, dtype=np.float64))
+    """Pixels of the code ring, their angular bins, and the coarse templates, computed
+    once per (model, settings): threads that ask meanwhile wait for the first one."""
+    with _RING_LOCK:
+        return _cached_ring_geometry(model, settings)
+
+
+def disk_region(model: ScannerModel, step: int = SEARCH_STEP) -> tuple[int, int, int, int]:
+    """(first row, end row, first column, end column) of the image that hold every pixel
+    seeing the disk, from a search on
+    every `step`-th pixel and the image's last row and column, widened by `step` + 1 px;
+    the whole image when the search finds no disk pixel (a disk too small for it)."""
+    cam = model.camera
+    u = np.unique(np.r_[np.arange(0, cam.width, step), cam.width - 1]).astype(np.float64)
+    v = np.unique(np.r_[np.arange(0, cam.height, step), cam.height - 1]).astype(np.float64)
+    radius, _, ahead = _disk_hits(model, *np.meshgrid(u, v))
+    seen = ahead & (radius <= model.encoder.outer_radius)
+    if not seen.any():
+        return 0, cam.height, 0, cam.width
+    rows, cols = v[seen.any(axis=1)], u[seen.any(axis=0)]
+    pad = step + 1
+    return (max(0, int(rows.min()) - pad), min(cam.height, int(rows.max()) + pad + 1),
+            max(0, int(cols.min()) - pad), min(cam.width, int(cols.max()) + pad + 1))
+
+
+def _disk_hits(model: ScannerModel, u: np.ndarray, v: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(radius, disk angle in `head`, hit ahead of the camera) where the rays of pixels
+    (u, v) meet the disk plane; arrays of u's shape."""
     centre, rays = pixel_rays(model, u.ravel(), v.ravel())
-    lift = disk_lift(model)
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = (lift - centre[2]) / rays[:, 2]
+        t = (disk_lift(model) - centre[2]) / rays[:, 2]
     hit = centre[:2] + t[:, None] * rays[:, :2]
-    radius = np.hypot(hit[:, 0], hit[:, 1])
-    angle = np.arctan2(hit[:, 1], hit[:, 0])
-    ahead = np.isfinite(t) & (t > 0)
+    shape = np.shape(u)
+    return (np.hypot(hit[:, 0], hit[:, 1]).reshape(shape),
+            np.arctan2(hit[:, 1], hit[:, 0]).reshape(shape),
+            (np.isfinite(t) & (t > 0)).reshape(shape))
+
+
+@lru_cache(maxsize=8)
+def _cached_ring_geometry(model: ScannerModel, settings: EncoderConfig,
+                          region: tuple[int, int, int, int] | None = None) -> RingGeometry:
+    """`ring_geometry` over `region` of the image (default: `disk_region`)."""
+    cam, enc = model.camera, model.encoder
+    row0, row1, col0, col1 = region or disk_region(model)
+    u, v = np.meshgrid(np.arange(col0, col1, dtype=np.float64),
+                       np.arange(row0, row1, dtype=np.float64))
+    radius, angle, ahead = _disk_hits(model, u, v)
     on_disk = ahead & (radius <= enc.outer_radius)
     if not on_disk.any():
         raise ScanError(f"{model.name}: the encoder disk is not in the camera's view")
-    cols = u.ravel()[on_disk]
+    cols = u[on_disk]
     width = enc.outer_radius - enc.inner_radius
     margin = settings.ring_margin * width
     ring = ahead & (radius >= enc.inner_radius + margin) & (radius <= enc.outer_radius - margin)
-    pixels = np.flatnonzero(ring)[::max(1, settings.pixel_step)]
-    phi = angle[pixels]
+    inside = np.flatnonzero(ring)[::max(1, settings.pixel_step)]
+    pixels = (v.ravel()[inside] * cam.width + u.ravel()[inside]).astype(np.int64)
+    phi = angle.ravel()[inside]
     if np.ptp(phi) > math.pi:
         raise ScanError(f"{model.name}: the camera sees more than half of the encoder ring; "
                         "this geometry is not supported")
@@ -183,7 +238,7 @@ def ring_geometry(model: ScannerModel, settings: EncoderConfig) -> RingGeometry:
     count = count[used]
     bin_angle = np.bincount(bins, weights=phi) / count
     # angular size of a pixel at each bin: the defocus blur in angle units
-    grad = _angle_per_pixel(angle.reshape(cam.height, cam.width)).ravel()[pixels]
+    grad = _angle_per_pixel(angle).ravel()[inside]
     bin_scale = np.bincount(bins, weights=grad) / count
     sector = enc.sector_angle
     candidates = np.arange(enc.sectors * COARSE_STEPS) * (sector / COARSE_STEPS)

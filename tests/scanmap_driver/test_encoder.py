@@ -4,12 +4,15 @@ cases, symmetric-code tracking, and the heading sequence helpers."""
 from __future__ import annotations
 
 import math
+import threading
+from dataclasses import fields, replace
 
 import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.special import ndtr
 
 from scanmap_driver import encoder
 from scanmap_driver.encoder import (
@@ -57,6 +60,60 @@ def test_renderer_projection_matches_opencv():
     ref, _ = cv2.projectPoints(cam_pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3),
                                model.camera.matrix, model.camera.dist_coeffs)
     assert np.allclose(project(model, pts), ref.reshape(-1, 2), atol=1e-6)
+
+
+# ---------------------------------------------------------------- the ring's geometry
+
+WHOLE_IMAGE_MODELS = {
+    "reference": MODEL,
+    "distorted": MODEL.with_changes(camera=CameraIntrinsics(
+        width=640, height=480, fx=1000.0, fy=1005.0, cx=322.0, cy=236.0,
+        distortion=(-0.2, 0.05, 0.001, -0.002, 0.01))),
+    "small sensor": MODEL.with_changes(camera=CameraIntrinsics(
+        width=320, height=240, fx=507.0, fy=507.0, cx=159.5, cy=119.5)),
+    "rolled": MODEL.with_changes(camera_mount=replace(MODEL.camera_mount, roll=0.05)),
+}
+
+
+@pytest.mark.parametrize("name", WHOLE_IMAGE_MODELS)
+def test_ring_geometry_on_the_disk_region_equals_the_whole_image(name):
+    """The disk is located on every 8th pixel first; the geometry computed on that region
+    is the one computed on every pixel of the image (the plain reference)."""
+    model = WHOLE_IMAGE_MODELS[name]
+    cam = model.camera
+    whole = encoder._cached_ring_geometry(model, EncoderConfig(),
+                                          (0, cam.height, 0, cam.width))
+    fast = ring_geometry(model, EncoderConfig())
+    row0, row1, col0, col1 = encoder.disk_region(model)
+    assert (row1 - row0) * (col1 - col0) < 0.5 * cam.width * cam.height
+    for field in fields(whole):
+        assert np.array_equal(getattr(fast, field.name), getattr(whole, field.name)), field.name
+
+
+def test_ring_geometry_is_computed_once_for_threads_that_ask_together():
+    model = MODEL.with_changes(camera_mount=replace(MODEL.camera_mount, roll=0.01))
+    before = encoder._cached_ring_geometry.cache_info().misses
+    start = threading.Barrier(3)
+    results = []
+
+    def ask():
+        start.wait()
+        results.append(ring_geometry(model, EncoderConfig()))
+
+    threads = [threading.Thread(target=ask) for _ in range(3)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert encoder._cached_ring_geometry.cache_info().misses == before + 1
+    assert results[0] is results[1] is results[2]
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=1, max_size=50))
+def test_normal_cdf_matches_scipy(values):
+    x = np.array(values)
+    assert np.allclose(encoder.normal_cdf(x), ndtr(x), rtol=1e-13, atol=1e-15,
+                       equal_nan=True)
 
 
 # ---------------------------------------------------------------- kernels against numpy
