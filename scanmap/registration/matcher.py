@@ -15,8 +15,8 @@ the scan keeps the prior's pose, reported INCONSISTENT, and stays out of the map
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import gammaincinv
 
+from scanmap.registration.chi_square import chi_square_quantile
 from scanmap.registration.config import RegistrationConfig
 from scanmap.registration.icp import ALL_AXES, Alignment, align
 from scanmap.registration.lie import PLANAR_AXES, between
@@ -60,8 +60,7 @@ def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: 
                         "guess is beyond max_correction / max_rotation", fitness)
     axes = PLANAR_AXES if config.planar else ALL_AXES
     distance2 = float(correction[axes] @ prior.information(axes) @ correction[axes])
-    # the chi-square quantile, 2 P^-1(k / 2, level) (scipy.stats costs 1 s to import)
-    if distance2 > 2.0 * gammaincinv(0.5 * len(axes), config.consistency_level):
+    if distance2 > chi_square_quantile(config.consistency_level, len(axes)):
         matched, guessed = pose_scores(source, local_map, [best.pose, prior.pose], config)
         if matched < guessed + _RECOVERY_GAIN:
             return _failure(prior, RegistrationStatus.INCONSISTENT, len(source),
