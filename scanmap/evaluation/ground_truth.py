@@ -42,8 +42,12 @@ def statistics(values: np.ndarray) -> dict[str, float]:
             "median": float(np.median(values))}
 
 
+RANGE_TRUTH_FIELDS = ("frame", "u", "base", "primary")  # what `range_errors` reads
+
+
 def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.ndarray, int]:
-    """Signed range error (m) of each matched point, and the number of true laser points."""
+    """Signed range error (m) of each matched point, and the number of true laser points
+    (`truth` needs only the laser fields RANGE_TRUTH_FIELDS)."""
     width = model.camera.width
     primary = truth.laser["primary"].astype(bool)
     true_key = (truth.laser["frame"][primary].astype(np.int64) * width

@@ -208,7 +208,7 @@ def scan_errors(scans: ScanSource, scan: Scan) -> tuple[np.ndarray, int, np.ndar
     path = truth_path(scans.path, scan.index)
     if not path.is_file():
         return None
-    truth = ScanTruth.load(path, mask=False)
+    truth = ScanTruth.load(path, mask=False, laser=evaluation.RANGE_TRUTH_FIELDS)
     error, count = evaluation.range_errors(scan, truth, scans.model)
     return error, count, evaluation.heading_errors(scan, truth)
 

@@ -96,6 +96,9 @@ class ScanTruth:
         if self.laser_mask.ndim != 3 or not self.laser_mask.shape[0] == len(self.frame_time):
             raise RecordingError(f"{path}: the truth has no laser mask for its "
                                  f"{len(self.frame_time)} frames (loaded with mask=False?)")
+        if set(self.laser) != set(_LASER):
+            raise RecordingError(f"{path}: the truth lacks the laser fields "
+                                 f"{sorted(set(_LASER) - set(self.laser))} (loaded in part?)")
         height, width = self.laser_mask.shape[1:]
         save_npz(path, format_version=np.array(FORMAT_VERSION), frame_time=self.frame_time,
                  frame_heading=self.frame_heading, frame_pose=self.frame_pose,
@@ -106,16 +109,22 @@ class ScanTruth:
                  **{f"laser_{key}": value for key, value in self.laser.items()})
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str], *, mask: bool = True) -> ScanTruth:
+    def load(cls, path: str | os.PathLike[str], *, mask: bool = True,
+             laser: tuple[str, ...] = _LASER) -> ScanTruth:
         """Read a scan's truth; a malformed file raises RecordingError naming it.
 
         mask=False leaves the laser pixel mask out (half the reading time; range and
-        heading errors do not need it)."""
+        heading errors do not need it); `laser` names the laser point fields to read (the
+        others are left out of `laser`, and their decompression saved)."""
+        unknown = set(laser) - set(_LASER)
+        if unknown:
+            raise ValueError(f"ScanTruth.load: unknown laser fields {sorted(unknown)}")
         names = ("format_version", "frame_time", "frame_heading", "frame_pose", "pose_start",
                  "pose_end", "odom_start", "odom_end", "laser_mask", "image_size",
                  *(f"laser_{key}" for key in _LASER))
+        skipped = tuple(f"laser_{key}" for key in _LASER if key not in laser)
         arrays = load_npz(path, RecordingError, required=names,
-                          skip=() if mask else ("laser_mask",))
+                          skip=skipped if mask else ("laser_mask", *skipped))
         if int(arrays["format_version"]) != FORMAT_VERSION:
             raise RecordingError(f"{path}: format_version {int(arrays['format_version'])} "
                                  f"is not {FORMAT_VERSION}")
@@ -129,7 +138,7 @@ class ScanTruth:
                    frame_pose=arrays["frame_pose"], pose_start=arrays["pose_start"],
                    pose_end=arrays["pose_end"], odom_start=arrays["odom_start"],
                    odom_end=arrays["odom_end"],
-                   laser={key: arrays[f"laser_{key}"] for key in _LASER}, laser_mask=pixels)
+                   laser={key: arrays[f"laser_{key}"] for key in laser}, laser_mask=pixels)
 
 
 def truth_path(recording: str | os.PathLike[str], index: int) -> Path:

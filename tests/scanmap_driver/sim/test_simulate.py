@@ -42,6 +42,20 @@ def test_truth_without_its_laser_mask_reads_the_rest_and_refuses_to_be_saved(rec
     assert not (tmp_path / "truth.npz").exists()
 
 
+def test_truth_read_in_part_holds_those_fields_and_refuses_to_be_saved(recorded, tmp_path):
+    whole = ScanTruth.load(truth_path(recorded, 0))
+    part = ScanTruth.load(truth_path(recorded, 0), laser=("frame", "base"))
+    assert set(part.laser) == {"frame", "base"}
+    for key in part.laser:
+        np.testing.assert_array_equal(part.laser[key], whole.laser[key])
+    np.testing.assert_array_equal(part.laser_mask, whole.laser_mask)
+    with pytest.raises(RecordingError, match="lacks the laser fields"):
+        part.save(tmp_path / "truth.npz")
+    assert not (tmp_path / "truth.npz").exists()
+    with pytest.raises(ValueError, match="unknown laser fields"):
+        ScanTruth.load(truth_path(recorded, 0), laser=("frame", "colour"))
+
+
 def test_the_recording_reads_back_with_its_truth(recorded):
     rec = Recording.open(recorded)
     assert rec.source == "simulator" and rec.extra["seed"] == 7
