@@ -11,9 +11,12 @@ Insertion is one scan at a time, in three passes:
 2. Rays, traced from the hit back to the sensor origin, cell by cell (Amanatides-Woo in
    x, y). In each cell the ray spans heights [za, zb]; it marks them seen free (the
    cell's observed mask), and it clears (subtracts `l_miss` from) a level only if it
-   passed through it: the span contains the level's middle or lies inside the level.
-   A ray under a table top or over a low box leaves them alone. A level hit in this scan
-   elsewhere and crossed inside is split around the ray instead (see _pass_cell). Guards
+   passed through it: the span crosses the height bin (`mask_dz`) of the level's middle,
+   or lies inside the level. A ray under a table top or over a low box leaves them
+   alone; a ray through the bin of a thin level (a person's arm seen once, a few mm
+   thick) passes it, as a voxel map counts it, even where it misses its exact height.
+   A level hit in this scan elsewhere and crossed inside is split around the ray
+   instead (see _pass_cell). Guards
    against eroding surfaces at grazing incidence: the last `clear_margin` metres
    before the hit clear nothing; a level hit in this scan within `protect` metres of
    the ray's heights is not cleared ("occupied wins", as in OctoMap, but per height, so
@@ -332,17 +335,24 @@ def _consolidate(lev_f, lev_n, lev_flag, nlev, off, z, free_mask, z_min, dz, lev
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _crosses(lo: float, hi: float, za: float, zb: float) -> bool:
-    """A ray spanning heights [za, zb] in a cell passed through the level [lo, hi]."""
+def _crosses(lo: float, hi: float, za: float, zb: float, bits: np.uint64, z_min: float,
+             dz: float) -> bool:
+    """A ray spanning heights [za, zb] (height bins `bits`) in a cell passed through the
+    level [lo, hi]: through the height bin of its middle, or wholly inside it.
+
+    The middle counts in height bins, as the observed mask and the ray bundles do: a thin
+    level (a person's sleeve seen once) is the bin it lies in, and every ray through that
+    bin passes it, as in a voxel map.
+    """
     mid = 0.5 * (lo + hi)
-    return (za <= mid <= zb) or (za >= lo and zb <= hi)
+    return bits & height_mask(mid, mid, z_min, dz) != 0 or (za >= lo and zb <= hi)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _crosses_any(lev_f, n, base, za, zb) -> bool:
+def _crosses_any(lev_f, n, base, za, zb, bits, z_min, dz) -> bool:
     """Whether the ray passed through any of the n levels starting at record base."""
     for li in range(base, base + n):
-        if _crosses(lev_f[li, LO], lev_f[li, HI], za, zb):
+        if _crosses(lev_f[li, LO], lev_f[li, HI], za, zb, bits, z_min, dz):
             return True
     return False
 
@@ -385,7 +395,8 @@ def _split(lev_f, lev_n, lev_flag, nlev, off, k, za, zb, levels) -> None:
 
 
 @njit(cache=True, nogil=True)
-def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, fp, levels, max_miss, scan) -> int:
+def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, fp, levels, max_miss,
+               scan) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
     A level not hit in this scan takes a miss. A level hit in this scan, but not within
@@ -402,7 +413,7 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, fp, levels, max_miss, 
     for k in range(np.int64(nlev[off]) - 1, -1, -1):
         li = base + k
         lo, hi = lev_f[li, LO], lev_f[li, HI]
-        if not _crosses(lo, hi, za, zb):
+        if not _crosses(lo, hi, za, zb, bits, fp[FP_ZMIN], fp[FP_MASK_DZ]):
             continue
         lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
         _touch(lev_n, lev_flag, li, scan)
@@ -507,9 +518,11 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                     if nlev[off] > 0 and t_out > t_margin:
                         za = pz + dzr * max(t_in, t_margin)
                         za, zb = min(za, zb), max(za, zb)
-                        if _crosses_any(lev_f, nlev[off], off * levels, za, zb):
+                        clear = height_mask(za, zb, z_min, mdz)
+                        if _crosses_any(lev_f, nlev[off], off * levels, za, zb, clear, z_min,
+                                        mdz):
                             n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb,
-                                                    fp, levels, max_miss, scan)
+                                                    clear, fp, levels, max_miss, scan)
             if tmx < tmy:
                 ix += sx
                 t_in = tmx

@@ -203,6 +203,18 @@ def test_ray_inside_a_level_hit_elsewhere_in_the_scan_splits_it():
     assert levels[1, gk.LOGODDS] == pytest.approx(full)
 
 
+def test_a_ray_through_the_height_bin_of_a_thin_level_clears_it():
+    """A level of one height (a person's arm seen in one scan) is the height bin it lies
+    in: a ray through that bin 4 mm above it passes it (issue 17: such levels were left
+    standing because no ray hit their exact height), a ray in the next bin does not."""
+    grid, full = one_level_grid(0.74, 0.74)  # bin [0.725, 0.75) of the 2.5 cm mask
+    miss = grid.config.l_miss
+    grid.insert(np.array([[4.0, 0.025, 0.755]]), np.array([0.0, 0.025, 0.755]), 10.0)
+    assert level_at(grid)[0, gk.LOGODDS] == pytest.approx(full)  # the next bin up
+    grid.insert(np.array([[4.0, 0.025, 0.744]]), np.array([0.0, 0.025, 0.744]), 11.0)
+    assert level_at(grid)[0, gk.LOGODDS] == pytest.approx(full - miss)
+
+
 def test_misses_per_scan_are_capped():
     grid, full = one_level_grid(0.72, 0.76)
     many = np.array([[4.0, 0.025 + dy, 0.74] for dy in np.linspace(-0.02, 0.02, 10)])
