@@ -30,15 +30,21 @@ _RECOVERY_GAIN = 0.1  # the coarse search must beat the guess's score by this mu
 
 
 def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: float,
-                  config: RegistrationConfig) -> RegistrationResult:
-    """Register `source` against `local_map`; the result's pose is map-local."""
+                  config: RegistrationConfig, expected_fitness: float = 0.0
+                  ) -> RegistrationResult:
+    """Register `source` against `local_map`; the result's pose is map-local.
+
+    expected_fitness: the fitness recent scans registered with (0: unknown); below
+    `config.recovery_drop` of it, as below `config.recovery_fitness`, a coarse search
+    looks for a better start."""
     if len(source) < config.min_points:
         return _failure(prior, RegistrationStatus.TOO_FEW_POINTS, len(source),
                         f"{len(source)} source points after filtering, need "
                         f"{config.min_points}")
     best = align(source, local_map, prior.pose, prior, threshold, config)
     recovered = False
-    if _fitness(best, source) < config.recovery_fitness:
+    if _fitness(best, source) < max(config.recovery_fitness,
+                                    config.recovery_drop * expected_fitness):
         start, score, guess_score = coarse_search(source, local_map, prior.pose, config)
         if score > guess_score + _RECOVERY_GAIN:
             second = align(source, local_map, start, prior, threshold, config)

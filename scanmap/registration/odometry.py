@@ -32,6 +32,7 @@ from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose
 
 _UNKNOWN_SIGMA = 1.0  # m and rad: the first scans' guess without odometry
+RECENT = 10  # registered scans whose median fitness a new scan is expected to reach
 
 
 class ScanOdometry:
@@ -106,7 +107,7 @@ class ScanOdometry:
                                         message="first scan: the map starts here")
         else:
             result = register_scan(source, self.local_map, prior, self.threshold.value,
-                                   self.config)
+                                   self.config, self._expected_fitness())
         self._accept(result, prior, source, stamp, odometry)
         absolute = result.pose.copy()
         absolute[:3, 3] += self.origin
@@ -168,6 +169,11 @@ class ScanOdometry:
         self._local.append(result.pose)
         self.stamps.append(stamp)
         self._odometry = odometry
+
+    def _expected_fitness(self) -> float:
+        """Median fitness of the registered scans among the last RECENT (0 if none)."""
+        recent = [r.fitness for r in self.results[-RECENT:] if r.ok and np.isfinite(r.fitness)]
+        return float(np.median(recent)) if recent else 0.0
 
     def _insert(self, pose: np.ndarray, source: Source) -> None:
         self.local_map.insert(source.cloud, len(self._local) + 1, source.cloud_variance, pose)
