@@ -468,7 +468,7 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
                   mask_dz: float, coverage: float,
                   reach: int, thin: float, origin_x: float, origin_y: float, res: float,
                   state: np.ndarray, points: np.ndarray, band_logodds: np.ndarray,
-                  covered: np.ndarray) -> None:
+                  covered: np.ndarray, min_logodds: float = 0.0) -> None:
     """UNKNOWN / FREE / OBSTACLE per cell, obstacle points and the band's highest log-odds;
     `covered`: cells that may lie under an overhanging obstacle (see below).
 
@@ -483,11 +483,15 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
     lowest hit (a ray that ends on a box's top marks only the heights above the hit), and
     `_plates` decides whether it overhangs. A cell under a table top that rays reached
     only under the top is thus not FREE, however much of the band they saw there.
+    A band level with log-odds below `min_logodds` does not make its cell an OBSTACLE
+    but keeps it from being FREE (UNKNOWN: as likely gone as there); for its neighbours
+    it counts as any other (their unseen heights beside it stay suspect).
     """
     ny, nx = nlev.shape
     occupied = np.zeros((ny, nx), np.uint64)  # band heights held by obstacles, per cell
     hanging = np.zeros((ny, nx), np.uint64)  # the same, of obstacles clear of the floor
     unseen = np.zeros((ny, nx), np.uint64)
+    doubtful = np.zeros((ny, nx), np.bool_)  # a band level with log-odds below min_logodds
     observable = np.uint64(0)  # heights some ray saw somewhere (not above the camera)
     for y in range(ny):
         for x in range(nx):
@@ -512,7 +516,10 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
                     if lo > low and hi - lo <= thin and occupied[y, x] == 0 \
                             and seen[y, x] & gk.height_mask(low, lo - mask_dz, z_min, mask_dz):
                         hanging[y, x] |= bits  # a board with free space under it
-                    occupied[y, x] |= bits
+                    occupied[y, x] |= bits  # for the neighbours, doubtful or not
+                    if levels[y, x, k, gk.LOGODDS] < min_logodds:
+                        doubtful[y, x] = True
+                        continue
                     w = 1.0 + levels[y, x, k, gk.LOGODDS]
                     weight += w
                     sx += w * levels[y, x, k, gk.MX]
@@ -540,7 +547,8 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
                     suspect |= _widen(occupied[yy, xx])
             covered[y, x] = unseen[y, x] & overhang[y, x] != 0
             if _popcount(band & counted[y, x]) >= max(coverage * _popcount(band), 1.0) \
-                    and band & seen[y, x] != 0 and unseen[y, x] & suspect == 0:
+                    and band & seen[y, x] != 0 and unseen[y, x] & suspect == 0 \
+                    and not doubtful[y, x]:
                 state[y, x] = FREE
 
 

@@ -55,8 +55,11 @@ heights only and its neighbours at others; an object hidden at the heights only 
 neighbours saw is narrower than a cell and was never lit), and
 no height it has not seen is suspect: occupied (within two height bins) in a
 neighbouring cell, or possibly under an overhanging board (a table top seen only at its
-rim); otherwise it is UNKNOWN. The footprint cells, observed floor or not, are FREE
-unless something occupies their band or may overhang them.
+rim); otherwise it is UNKNOWN. Occupied means a level with log-odds of at least
+`min_logodds`: one below it (seen, then seen through more often since: where a person
+walked on) leaves its cell UNKNOWN, neither an obstacle nor free. The footprint cells,
+observed floor or not, are FREE unless something occupies their band or may overhang
+them.
 
 Why the map of one scan is mostly UNKNOWN: a cell is seen free at the heights that the
 rays crossing it have there, and every ray of this scanner falls from the camera (1 m
@@ -142,6 +145,11 @@ class FloorConfig:
     its cells are filled. floor_probe: rays that
     passed this low (m) over a cell's floor should have lit it (the stripe runs along
     them); without a return there it is not FREE.
+    min_logodds: the log-odds a level in the robot's band needs to make its cell an
+    OBSTACLE. Below it the level is as likely gone as there (a surface seen in one scan
+    and seen through twice since: 0.85 - 2 x 0.4 = 0.05 with the grid's defaults, a
+    person who walked on): its cell is UNKNOWN, neither an obstacle nor free. Between
+    0.05 and one hit less one miss (0.45), so a surface seen once and through once stays.
     """
 
     thickness: float = 0.06
@@ -163,6 +171,7 @@ class FloorConfig:
     max_hole: float = 0.3
     max_gap: float = 0.3
     floor_probe: float = 0.1
+    min_logodds: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -190,7 +199,8 @@ class Segmentation:
     with observed floor, NaN elsewhere.
     state: UNKNOWN / FREE / OBSTACLE / DROP_OFF per cell. points: (ny, nx, 2) float32, the obstacle
     point of each obstacle cell (mean of its hits in the band), the centre elsewhere.
-    band_logodds: (ny, nx) float32, highest log-odds in the band (NaN where none).
+    band_logodds: (ny, nx) float32, highest log-odds of the band's levels of at least
+    `FloorConfig.min_logodds` (NaN where none).
     updated: (ny, nx) float64 last update time.
     """
 
@@ -386,7 +396,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                      robot.step_height, robot.height, layers.z_min, layers.mask_dz,
                      params.min_coverage, round(params.overhang_reach / res),
                      params.overhang_thickness, layers.origin[0], layers.origin[1], res,
-                     state, points, band_logodds, covered)
+                     state, points, band_logodds, covered, params.min_logodds)
     state[(state == FREE) & unlit] = UNKNOWN
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
