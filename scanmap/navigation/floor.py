@@ -79,11 +79,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers
 from scanmap.navigation import _kernels as nk
+from scanmap.navigation import morphology
 from scanmap.navigation._kernels import DROP_OFF as DROP_OFF  # re-exported: the cell states
 from scanmap.navigation._kernels import FREE as FREE
 from scanmap.navigation._kernels import OBSTACLE as OBSTACLE
@@ -320,7 +320,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         floor_height[assumed] = fallback_floor
     stood = _footprint_cells(layers, robot.radius)  # observed floor or not: it stood there
     # Below the lowest floor near the cell (a cell between two floors at a step is neither's)
-    lowest = ndimage.minimum_filter(np.nan_to_num(floor_height, nan=np.inf), size=5)
+    lowest = morphology.min_filter(np.nan_to_num(floor_height, nan=np.inf), 5)
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
     drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
                           robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
@@ -329,26 +329,24 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                          round(params.max_hole / res), robot.step_height)
     if drop.any():  # through the rim's shadow: no hit there or next to it but the drop's
         # own, not between floor samples (a gap in the floor, the shadow of an object)
-        shadow = ~ndimage.binary_dilation(is_floor | stood | holes | (layers.nlev > 0) & ~drop,
-                                          np.ones((3, 3), bool)) & (layers.nlev == 0)
+        shadow = ~morphology.dilate(is_floor | stood | holes | (layers.nlev > 0) & ~drop) \
+            & (layers.nlev == 0)
         shadow &= ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
                                    floor_height, round(params.max_hole / res),
                                    robot.step_height)  # nor between floor samples
-        spread = ndimage.binary_dilation(drop, np.ones((3, 3), bool), mask=shadow,
-                                         iterations=max(round(params.drop_reach / res), 1))
+        spread = morphology.dilate(drop, max(round(params.drop_reach / res), 1), within=shadow)
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there)
-        drop |= ndimage.binary_dilation(spread & ~seeds, np.ones((3, 3), bool)) \
-            & (layers.nlev == 0) & ~nk.interpolated(is_floor | stood | holes,
-                                                    (layers.nlev > 0) | drop, floor_height,
-                                                    2, robot.step_height)
+        drop |= morphology.dilate(spread & ~seeds) & (layers.nlev == 0) & ~nk.interpolated(
+            is_floor | stood | holes, (layers.nlev > 0) | drop, floor_height, 2,
+            robot.step_height)
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
     # (not the foot of a surface a ray ended on) the laser should have lit it
     probed = _lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
         <= floor_height + params.floor_probe
-    bare = ~ndimage.maximum_filter(layers.nlev > 0, size=3)
+    bare = ~morphology.max_filter(layers.nlev > 0, 3)
     holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
                        floor_height, drop, round(params.max_hole / res), robot.step_height)
     # No return is not free: the floor seen (a hit there), a gap, stood on, assumed, or
@@ -376,8 +374,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
             # through cells without a hit (not of the space behind a wall)
             lines &= distance_transform(drop | _below_model(
                 layers, is_floor, lowest, params.plane_tolerance))[0] > gap
-            lines &= ~ndimage.binary_dilation(wide, np.ones((3, 3), bool), iterations=gap,
-                                              mask=~(known_floor | informative))
+            lines &= ~morphology.dilate(wide, gap, within=~(known_floor | informative))
         seen_floor |= lines
     unlit = (probed & bare) | steep
     unlit &= ~is_floor & ~stood & ~assumed & ~holes & ~lines
@@ -389,8 +386,8 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     pool = round(params.coverage_reach / res)
     counted = layers.seen
     if pool:  # known floor off a drop-off's rim: the coverage over it and its neighbours
-        known = ndimage.binary_dilation(is_floor, np.ones((3, 3), bool)) | holes | lines
-        known &= ~ndimage.binary_dilation(drop, np.ones((3, 3), bool))
+        known = morphology.dilate(is_floor) | holes | lines
+        known &= ~morphology.dilate(drop)
         counted = np.where(known, _pooled(layers.seen, pool), layers.seen)
     nk.classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height,
                      robot.step_height, robot.height, layers.z_min, layers.mask_dz,
@@ -422,10 +419,10 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
     out = np.zeros((ny, nx), bool)
     if not low.any():
         return out
-    labels, _ = ndimage.label(dark, np.ones((3, 3), bool))
-    near = ndimage.maximum_filter(low, size=5)
-    near_drop = ndimage.maximum_filter(drop, size=3)
-    for index, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
+    labels, _, boxes = morphology.components(dark)
+    near = morphology.max_filter(low, 5)
+    near_drop = morphology.max_filter(drop, 3)
+    for index, (rows, cols) in enumerate(boxes, start=1):
         if (rows.stop - rows.start > size or cols.stop - cols.start > size or rows.start < 2
                 or cols.start < 2 or rows.stop > ny - 2 or cols.stop > nx - 2):
             continue
@@ -459,10 +456,10 @@ def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     at the window's edge nor next to a drop-off, whose hits within two cells are all floor
     with heights differing by at most `step`: gaps between the laser's samples."""
     ny, nx = bare.shape
-    labels, _ = ndimage.label(bare, np.ones((3, 3), bool))
+    labels, _, boxes = morphology.components(bare)
     out = np.zeros((ny, nx), bool)
-    near_drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool))
-    for index, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
+    near_drop = morphology.dilate(drop)
+    for index, (rows, cols) in enumerate(boxes, start=1):
         if (rows.stop - rows.start > size or cols.stop - cols.start > size or rows.start < 2
                 or cols.start < 2 or rows.stop > ny - 2 or cols.stop > nx - 2):
             continue
@@ -512,12 +509,12 @@ def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarra
     (not touching the window's edge) whose heights around them differ by at most `step`,
     and showing no drop-off."""
     ny, nx = is_floor.shape
-    labels, count = ndimage.label(~is_floor, np.ones((3, 3), bool))
+    labels, count, boxes = morphology.components(~is_floor)
     if not count:
         return np.zeros(is_floor.shape, bool)
     ok = np.ones(count + 1, bool)
     ok[0] = False
-    for index, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
+    for index, (rows, cols) in enumerate(boxes, start=1):
         ok[index] = (rows.stop - rows.start <= size and cols.stop - cols.start <= size
                      and rows.start > 0 and cols.start > 0 and rows.stop < ny
                      and cols.stop < nx)

@@ -1,0 +1,57 @@
+"""Binary morphology and connected components on cell masks, by OpenCV.
+
+The segmentation needs a few of scipy.ndimage's operations on small boolean grids:
+dilation by the 3 x 3 square (also geodesic: grown only inside a mask, a step at a time),
+square minimum and maximum filters, and 8-connected components with their bounding
+boxes. OpenCV's versions of these give the same results (tested against ndimage), cost a
+fraction of the time on these grids, and keep scipy out of a command's start (importing
+scipy.ndimage takes 0.2 s, with scipy.special that it loads).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+_SQUARE3 = np.ones((3, 3), np.uint8)
+
+
+def dilate(mask: np.ndarray, iterations: int = 1, within: np.ndarray | None = None
+           ) -> np.ndarray:
+    """`mask` dilated `iterations` times by the 3 x 3 square (nothing beyond the array's
+    edge). With `within`, each step changes only cells of `within`; the others keep their
+    value in `mask` (ndimage.binary_dilation's `mask`)."""
+    source = np.ascontiguousarray(mask, dtype=np.uint8)
+    if within is None:
+        return cv2.dilate(source, _SQUARE3, iterations=max(iterations, 0)).astype(bool)
+    inside = np.asarray(within, dtype=bool)
+    out = source
+    for _ in range(max(iterations, 0)):
+        grown = np.where(inside, cv2.dilate(out, _SQUARE3), source)
+        if np.array_equal(grown, out):
+            break
+        out = grown
+    return out.astype(bool)
+
+
+def max_filter(mask: np.ndarray, size: int) -> np.ndarray:
+    """True where any cell of the `size` x `size` square centred there is (odd size)."""
+    return cv2.dilate(np.ascontiguousarray(mask, dtype=np.uint8),
+                      np.ones((size, size), np.uint8)).astype(bool)
+
+
+def min_filter(values: np.ndarray, size: int) -> np.ndarray:
+    """The least value (float32) in the `size` x `size` square centred on each cell (odd
+    size; cells beyond the edge do not count)."""
+    return cv2.erode(np.ascontiguousarray(values, dtype=np.float32),
+                     np.ones((size, size), np.uint8), borderType=cv2.BORDER_REPLICATE)
+
+
+def components(mask: np.ndarray) -> tuple[np.ndarray, int, list[tuple[slice, slice]]]:
+    """8-connected components of `mask`: labels (int32, 0 off the mask, 1..count), count,
+    and each component's bounding box as (rows, columns) slices, in label order."""
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(
+        np.ascontiguousarray(mask, dtype=np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    boxes = [(slice(int(y), int(y + h)), slice(int(x), int(x + w)))
+             for x, y, w, h in stats[1:, :4]]
+    return labels, count - 1, boxes
