@@ -17,10 +17,9 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from scanmap.evaluation.trajectory_errors import ate_rmse
-from scanmap.navigation import floor
+from scanmap.navigation import floor, morphology
 from scanmap.navigation.floor import Segmentation
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel
@@ -107,7 +106,7 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
     in_world = transform_points(world_from_map, cells)
     truth_class = _lookup(raster.classes, raster.origin, raster.resolution, in_world,
                           -1).reshape(ny, nx)
-    near_truth = ndimage.binary_dilation(raster.classes == RASTER_OBSTACLE, np.ones((3, 3), bool))
+    near_truth = morphology.dilate(raster.classes == RASTER_OBSTACLE)
     near_truth_at = _lookup(near_truth, raster.origin, raster.resolution, in_world,
                             False).reshape(ny, nx)
     predicted = seg.state == floor.OBSTACLE
@@ -119,7 +118,7 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
                                   raster.origin[1] + (rows + 0.5) * raster.resolution,
                                   np.zeros(rows.size)])
     in_map = transform_points(invert_pose(world_from_map), true_cells)
-    near_map = ndimage.binary_dilation(predicted, np.ones((3, 3), bool))
+    near_map = morphology.dilate(predicted)
     detected = _lookup(near_map, seg.origin, seg.resolution, in_map, False)
     observed = detected | _lookup(free, seg.origin, seg.resolution, in_map, False)
     recall = float(detected[observed].mean()) if observed.any() else float("nan")

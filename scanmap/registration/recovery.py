@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from numba import njit
-from scipy.ndimage import distance_transform_edt
 
 from scanmap.registration.config import RegistrationConfig
 from scanmap.registration.local_map import LINE, PLANE, LocalMap
@@ -50,7 +50,14 @@ def _likelihood_grid(local_map: LocalMap, centre: np.ndarray, reach: float,
     cells = np.floor((targets - origin) / resolution).astype(np.int64)
     occupied = np.zeros((size, size), dtype=bool)
     occupied[cells[:, 0], cells[:, 1]] = True
-    return np.exp(-0.5 * distance_transform_edt(~occupied) ** 2), origin
+    return np.exp(-0.5 * distance_to_occupied(occupied) ** 2), origin
+
+
+def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
+    """Exact Euclidean distance (cells) from every cell to the nearest occupied one (OpenCV's
+    precise mask: Felzenszwalb's algorithm, as scipy's distance_transform_edt)."""
+    return cv2.distanceTransform((~occupied).astype(np.uint8), cv2.DIST_L2,
+                                 cv2.DIST_MASK_PRECISE).astype(np.float64)
 
 
 def pose_scores(source: Source, local_map: LocalMap, poses: list[np.ndarray],

@@ -27,7 +27,6 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from ..errors import MapError
 from ..files import load_npz, save_npz
@@ -36,7 +35,6 @@ from .scene import Box, Cylinder, Scene
 OUTSIDE, FLOOR, OBSTACLE, DROP_OFF = 0, 1, 2, 3
 FORMAT_VERSION = 2
 MAX_SLOPE = math.radians(15.0)  # the steepest floor the robot drives on (FloorConfig's)
-_FOUR = ndimage.generate_binary_structure(2, 1)
 
 
 @dataclass(frozen=True)
@@ -115,7 +113,10 @@ def truth_raster(scene: Scene, resolution: float = 0.05, low: float = 0.05,
     inside = np.floor((scene.scan_poses[:, :2] - origin) / resolution).astype(int)
     floor = _drivable(height, ~obstacle & (slope <= max_slope), inside[:, 1], inside[:, 0], low)
     classes = np.where(floor, FLOOR, OUTSIDE).astype(np.uint8)
-    touching = ndimage.binary_dilation(floor, _FOUR) & ~floor & ~obstacle
+    from scipy import ndimage  # building truth only: reading a raster needs no scipy
+
+    touching = ndimage.binary_dilation(floor, ndimage.generate_binary_structure(2, 1)) \
+        & ~floor & ~obstacle
     _, (near_y, near_x) = ndimage.distance_transform_edt(~floor, return_indices=True)
     lowered = ~floor & ~obstacle & (height < height[near_y, near_x] - low)
     labels, _ = ndimage.label(lowered)

@@ -13,7 +13,7 @@ from scanmap.registration.icp import evaluate
 from scanmap.registration.local_map import LINE, LocalMap
 from scanmap.registration.planes import PLANE, eigen_sym2, eigen_sym3, fit_voxel
 from scanmap.registration.preprocess import prepare_source
-from scanmap.registration.recovery import _shift_scores
+from scanmap.registration.recovery import _shift_scores, distance_to_occupied
 from scanmap.registration.voxel_hash import (
     COORD_LIMIT,
     build_table,
@@ -265,3 +265,20 @@ def test_shift_scores_match_reference(shifts):
     cells = rng.integers(-2, 32, (50, 2))
     np.testing.assert_allclose(_shift_scores(grid, cells, shifts),
                                reference.shift_scores(grid, cells, shifts), atol=1e-12)
+
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.data())
+def test_coarse_search_distances_match_scipy(data):
+    """The coarse search's distance to the nearest map voxel (OpenCV) against scipy's exact
+    Euclidean distance transform."""
+    from scipy.ndimage import distance_transform_edt
+
+    shape = data.draw(st.tuples(st.integers(1, 50), st.integers(1, 50)))
+    cells = data.draw(st.lists(st.tuples(st.integers(0, shape[0] - 1),
+                                         st.integers(0, shape[1] - 1)), min_size=1))
+    occupied = np.zeros(shape, bool)
+    occupied[tuple(np.array(cells).T)] = True
+    np.testing.assert_allclose(distance_to_occupied(occupied),
+                               distance_transform_edt(~occupied), rtol=1e-6, atol=1e-5)
