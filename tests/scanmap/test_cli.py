@@ -36,12 +36,17 @@ def test_reexports_driver_types():
     assert Scan is DriverScan
 
 
-def test_the_command_line_starts_without_open3d_or_the_optimisers():
+HEAVY_AT_START = ("open3d", "scipy.optimize", "scipy.ndimage", "scipy.special")
+
+
+def test_the_command_line_starts_without_open3d_or_scipy_s_heavy_parts():
     """Only simulating and ray-cast evaluation need Open3D (about 1 s to import), only
-    calibration scipy.optimize (0.2 s): building the command line (every command's
-    options) must load neither."""
+    calibration scipy.optimize (0.2 s), only building a truth raster scipy.ndimage (with
+    scipy.special, 0.3 s): building the command line (every command's options) and
+    mapping's modules must load none of them."""
     code = ("import sys; from scanmap.cli import build_parser; build_parser(); "
-            "print('open3d' in sys.modules, 'scipy.optimize' in sys.modules)")
+            "import scanmap.pipelines.offline; "
+            f"print(*[m in sys.modules for m in {HEAVY_AT_START!r}])")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True)
-    assert result.stdout.split() == ["False", "False"]
+    assert result.stdout.split() == ["False"] * len(HEAVY_AT_START)
