@@ -15,8 +15,7 @@ from functools import lru_cache
 
 def chi_square_cdf(x: float, dof: int) -> float:
     """P(X <= x) for a chi-square X with `dof` degrees of freedom (dof >= 1)."""
-    if dof < 1:
-        raise ValueError(f"chi-square: dof must be at least 1, got {dof}")
+    _check_dof(dof)
     if x <= 0.0:
         return 0.0
     if math.isinf(x):
@@ -36,8 +35,8 @@ def chi_square_quantile(level: float, dof: int) -> float:
     level 0, inf at level 1 (a gate that passes everything)."""
     if not 0.0 <= level <= 1.0:
         raise ValueError(f"chi-square: level must lie in [0, 1], got {level}")
+    _check_dof(dof)
     if level in (0.0, 1.0):
-        chi_square_cdf(0.0, dof)  # checks dof
         return math.inf if level else 0.0
     lo, hi = 0.0, float(dof)
     while chi_square_cdf(hi, dof) < level:
@@ -48,3 +47,8 @@ def chi_square_quantile(level: float, dof: int) -> float:
             break
         lo, hi = (mid, hi) if chi_square_cdf(mid, dof) < level else (lo, mid)
     return 0.5 * (lo + hi)
+
+
+def _check_dof(dof: int) -> None:
+    if dof < 1:
+        raise ValueError(f"chi-square: dof must be at least 1, got {dof}")
