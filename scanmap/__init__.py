@@ -38,6 +38,7 @@ from scanmap.navigation import (
     QueryStatus,
     RobotShape,
     Segmentation,
+    Travel,
     distance_transform,
     inflate,
     occupancy_grid,
@@ -86,7 +87,7 @@ __all__ = [  # noqa: RUF022 (grouped by the layer they come from, sorted within)
     # floor, obstacles, queries and costmaps
     "FREE", "INSCRIBED", "LETHAL", "OBSTACLE", "UNKNOWN", "Clearance", "FloorConfig",
     "Nearest", "ObstacleMap", "PolarScan", "QueryStatus", "RobotShape", "Segmentation",
-    "distance_transform", "inflate", "occupancy_grid", "segment",
+    "Travel", "distance_transform", "inflate", "occupancy_grid", "segment",
     # files and pictures
     "Trajectory", "load_map", "load_ros_map", "occupancy_image", "overhead_view", "read_tum",
     "save_map", "save_ros_map", "write_png", "write_tum",

@@ -29,6 +29,7 @@ from scanmap.navigation.obstacles import (
     ObstacleSnapshot,
     PolarScan,
     QueryStatus,
+    Travel,
 )
 
 __all__ = [
@@ -48,6 +49,7 @@ __all__ = [
     "QueryStatus",
     "RobotShape",
     "Segmentation",
+    "Travel",
     "costmap_to_occupancy",
     "distance_transform",
     "inflate",

@@ -831,6 +831,77 @@ def _segment_distance(px, py, ax, ay, bx, by):
     return math.hypot(px - ax - t * ex, py - ay - t * ey)
 
 
+_SQUARE_X, _SQUARE_Y = (0.0, 1.0, 1.0, 0.0), (0.0, 0.0, 1.0, 1.0)  # corners, in cells
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _edge_contact(u0, v0, u1, v1, radius):
+    """Least forward travel t at which a disc of `radius` centred at the origin, moving
+    along +u, meets the segment (u0, v0)-(u1, v1): t = u - sqrt(r^2 - v^2) over the
+    segment's points with |v| <= r (inf if none). t is convex along the segment, so its
+    least is at an end, where the segment crosses |v| = r, or where dt/ds = 0."""
+    r2 = radius * radius
+    best = np.inf
+    for u, v in ((u0, v0), (u1, v1)):
+        if abs(v) <= radius:
+            best = min(best, u - math.sqrt(r2 - v * v))
+    du, dv = u1 - u0, v1 - v0
+    if dv != 0.0:
+        for bound in (-radius, radius):
+            if (v0 - bound) * (v1 - bound) < 0.0:
+                best = min(best, u0 + (bound - v0) / dv * du)
+        k = -du / dv  # dt/ds = 0 where v / sqrt(r^2 - v^2) = -du / dv
+        v = radius * k / math.sqrt(1.0 + k * k)
+        s = (v - v0) / dv
+        if 0.0 < s < 1.0 and abs(v) < radius:
+            best = min(best, u0 + s * du - math.sqrt(r2 - v * v))
+    return best
+
+
+@njit(cache=True, nogil=True)
+def travel_kernel(qx, qy, yaw, radius, max_distance, state, geo):
+    """(distance, kind): how far a disc of `radius` at (qx, qy) moves along `yaw` before
+    it meets a cell square not FREE (cells beyond the window count as UNKNOWN), capped at
+    max_distance (kind FREE then); 0 if it overlaps one already."""
+    ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    c, s = math.cos(yaw), math.sin(yaw)
+    reach = max_distance + radius + res
+    x_lo = math.floor((qx - reach - ox) / res)
+    x_hi = math.floor((qx + reach - ox) / res)
+    y_lo = math.floor((qy - reach - oy) / res)
+    y_hi = math.floor((qy + reach - oy) / res)
+    half_diag = res * math.sqrt(0.5)
+    best, kind = max_distance, np.int64(FREE)
+    for iy in range(y_lo, y_hi + 1):
+        for ix in range(x_lo, x_hi + 1):
+            inside = 0 <= ix < nx and 0 <= iy < ny
+            cell = np.int64(state[iy, ix]) if inside else np.int64(UNKNOWN)
+            if cell == FREE:
+                continue
+            x0, y0 = ox + ix * res, oy + iy * res
+            du = (x0 + 0.5 * res - qx) * c + (y0 + 0.5 * res - qy) * s
+            dv = -(x0 + 0.5 * res - qx) * s + (y0 + 0.5 * res - qy) * c
+            if abs(dv) > radius + half_diag or not -radius - half_diag < du < \
+                    best + radius + half_diag:
+                continue  # off the swept band, behind, or beyond the best contact
+            nearest_x = min(max(qx, x0), x0 + res) - qx
+            nearest_y = min(max(qy, y0), y0 + res) - qy
+            if nearest_x * nearest_x + nearest_y * nearest_y < radius * radius:
+                return 0.0, cell  # the disc overlaps it already
+            t = np.inf
+            for corner in range(4):  # the edges (x0, y0) -> (x0 + res, y0) -> ...
+                ax, ay = x0 + res * _SQUARE_X[corner], y0 + res * _SQUARE_Y[corner]
+                bx = x0 + res * _SQUARE_X[(corner + 1) % 4]
+                by = y0 + res * _SQUARE_Y[(corner + 1) % 4]
+                t = min(t, _edge_contact((ax - qx) * c + (ay - qy) * s,
+                                         -(ax - qx) * s + (ay - qy) * c,
+                                         (bx - qx) * c + (by - qy) * s,
+                                         -(bx - qx) * s + (by - qy) * c, radius))
+            if 0.0 <= t < best:  # t < 0: behind the disc, never met moving forward
+                best, kind = t, cell
+    return best, kind
+
+
 @njit(cache=True, nogil=True)
 def polygon_margin(polygon, radius, state, points, geo):
     """Least signed distance (negative inside) from the polygon (K, 2) in map to what is

@@ -1,4 +1,5 @@
-"""Obstacle queries for a controller: distance, nearest obstacle, virtual range scan, clearance.
+"""Obstacle queries for a controller: distance, nearest obstacle, virtual range scan, clearance,
+free travel ahead.
 
 A query never calls unknown space free, and a drop-off cell (DROP_OFF) counts as an
 obstacle at its centre in every query. Two distance fields are kept: one over the
@@ -118,6 +119,19 @@ class Clearance:
 
     collision: bool
     margin: float
+    age: float
+    status: QueryStatus
+    stamp: float = math.nan  # the data time of the snapshot answered from (NaN: none)
+
+
+@dataclass(frozen=True)
+class Travel:
+    """How far (m) the footprint can drive straight ahead before it touches space not
+    known free, and what it touches (status UNKNOWN: unknown space; OK: an obstacle, a
+    drop-off, or nothing within the distance asked)."""
+
+    distance: float
+    kind: int  # the cell state it touches (FREE: nothing within the distance asked)
     age: float
     status: QueryStatus
     stamp: float = math.nan  # the data time of the snapshot answered from (NaN: none)
@@ -293,6 +307,31 @@ class ObstacleMap:
             status = QueryStatus.UNKNOWN if (kinds == UNKNOWN).any() else QueryStatus.OK
         return PolarScan(angles, ranges, kinds, age, status,
                          math.nan if snap is None else snap.stamp)
+
+    def travel(self, pose: tuple[float, float, float], max_distance: float = 2.0) -> Travel:
+        """How far the robot's circle at pose (x, y, yaw) can drive straight along yaw
+        before it touches a cell not known free (its square: obstacles count by their
+        cells here, not their measured points), up to max_distance (m, finite, > 0): the
+        path a controller is about to take, where `nearest` also counts what lies beside
+        it. 0 when it touches one already; 0 for stale, faulted or absent data and an
+        invalid pose."""
+        try:
+            x, y, yaw = map(float, pose)
+        except (TypeError, ValueError):
+            raise MapError(f"ObstacleMap.travel: pose must be (x, y, yaw), got {pose!r}"
+                           ) from None
+        max_distance = float(max_distance)
+        if not 0.0 < max_distance <= COORDINATE_LIMIT:
+            raise MapError(f"ObstacleMap.travel: max_distance must be a finite number > 0, "
+                           f"got {max_distance}")
+        snap, age, status = self._usable()
+        if snap is None or not _valid(x, y, yaw):
+            return Travel(0.0, UNKNOWN, age, status if snap is None else QueryStatus.INVALID)
+        distance, kind = nk.travel_kernel(x, y, math.remainder(yaw, 2 * math.pi),
+                                          self.robot.radius, max_distance,
+                                          snap.segmentation.state, snap.geometry)
+        return Travel(float(distance), int(kind), age,
+                      QueryStatus.UNKNOWN if kind == UNKNOWN else QueryStatus.OK, snap.stamp)
 
     def clearance(self, pose: tuple[float, float, float],
                   footprint: float | np.ndarray | None = None) -> Clearance:
