@@ -26,24 +26,26 @@ samples (below), so its edge is within a cell of the last floor seen (the cells 
 the drop-off themselves are where it is: no cell on from them). DROP_OFF is never free
 and lethal in the costmap.
 
-No return is not free: a cell is FREE only where the floor was seen - a floor hit in
-the cell - or is known otherwise: the robot's footprint at the poses it scanned from (it
-stood there; FREE unless something occupies its band), the assumed `fallback_floor` of a
-2-D laser, a patch without any hit no larger than `max_hole` (0.3 m, each side) enclosed
-by floor whose heights differ by at most a step, or whose hits within two cells are all
-such floor (a gap between the laser's samples), away from any drop-off, and a cell
-without any hit between two such cells at most three cells (15 cm) apart along a row, a
-column or a diagonal, with heights within a step (the gaps between samples too narrow to
-hold a cell without a hit next to it). Every other cell - black carpet, a hole nothing
-returned from, the floor beyond the last floor hit before a drop-off, floor never lit at
-all - stays UNKNOWN however much of the band rays saw over it (its floor height carried
-from nearby floor is an assumption, not a sighting), as does a cell too steep to be
-floor. A real hole of max_hole or less returns hits below the floor (its far wall) that
-are not floor, so it is not a gap; it is a DROP_OFF where those lie more than a step down,
-and its cells without any hit around them are when a surface lies wholly below the floor
-model (more than `plane_tolerance`) within two cells of them, away from any other
-drop-off: the floor goes down into a small patch nothing returned from (seen from afar,
-this scanner's laser lands only on the top few cm of a hole's far wall).
+No return is not free: a cell is FREE only where the floor was seen - a floor hit in the
+cell - or is known otherwise: the cells the robot's footprint overlaps at the poses it
+scanned from (it stood there; FREE unless something occupies its band), the assumed
+`fallback_floor` of a 2-D laser, a patch without any hit no larger than `max_hole` (0.3
+m, each side) enclosed by floor whose heights differ by at most a step, or whose hits
+within two cells are all such floor (a gap between the laser's samples), away from any
+drop-off, and a cell without any hit between two such cells at most three cells (15 cm)
+apart along a row, a column or a diagonal, with heights within a step (the gaps between
+samples too narrow to hold a cell without a hit next to it); last, a patch without any
+hit at most `max_pinhole` (15 cm) each side whose every neighbour ended FREE. Every
+other cell - black carpet, a hole nothing returned from, the floor beyond the last floor
+hit before a drop-off, floor never lit at all - stays UNKNOWN however much of the band
+rays saw over it (its floor height carried from nearby floor is an assumption, not a
+sighting), as does a cell too steep to be floor. A real hole of max_hole or less returns
+hits below the floor (its far wall) that are not floor, so it is not a gap; it is a
+DROP_OFF where those lie more than a step down, and its cells without any hit around
+them are when a surface lies wholly below the floor model (more than `plane_tolerance`)
+within two cells of them, away from any other drop-off: the floor goes down into a small
+patch nothing returned from (seen from afar, this scanner's laser lands only on the top
+few cm of a hole's far wall).
 
 Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known and not unlit (above), nothing
@@ -150,6 +152,10 @@ class FloorConfig:
     and seen through twice since: 0.85 - 2 x 0.4 = 0.05 with the grid's defaults, a
     person who walked on): its cell is UNKNOWN, neither an obstacle nor free. Between
     0.05 and one hit less one miss (0.45), so a surface seen once and through once stays.
+    max_pinhole: the largest patch (m, each side) of UNKNOWN cells without any hit whose
+    every neighbour is FREE that is taken as FREE: a pinhole between the laser's samples
+    in floor seen free all round (a hole there shows its far wall as hits, which are not
+    FREE). 0.15 m: three cells, the span `interpolated` fills between floor samples.
     """
 
     thickness: float = 0.06
@@ -172,6 +178,7 @@ class FloorConfig:
     max_gap: float = 0.3
     floor_probe: float = 0.1
     min_logodds: float = 0.2
+    max_pinhole: float = 0.15
 
 
 @dataclass(frozen=True)
@@ -397,6 +404,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     state[(state == FREE) & unlit] = UNKNOWN
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
+    state[_pinholes(state, layers.nlev, round(params.max_pinhole / res))] = FREE
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
                         is_floor=(is_floor | stood | holes) & (state != OBSTACLE) & ~drop
@@ -487,7 +495,9 @@ def _pooled(seen: np.ndarray, reach: int) -> np.ndarray:
 
 
 def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
-    """Cells whose centres lie within `radius` of where the sensor stood."""
+    """Cells the footprint (a disc of `radius` round where the sensor stood) overlaps: the
+    robot's own body never touches unknown space where it stood, as queries measure it
+    (to the cells' squares)."""
     ny, nx = layers.shape
     out = np.zeros((ny, nx), bool)
     xs, ys = layers.cell_centers()
@@ -498,9 +508,24 @@ def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
         x0, x1 = max(cx - reach, 0), min(cx + reach + 1, nx)
         y0, y1 = max(cy - reach, 0), min(cy + reach + 1, ny)
         if x0 < x1 and y0 < y1:
-            dx, dy = xs[x0:x1][None, :] - x, ys[y0:y1][:, None] - y
-            out[y0:y1, x0:x1] |= dx * dx + dy * dy <= radius * radius
+            half = 0.5 * layers.resolution  # from the centre to the square's nearest point
+            dx = np.maximum(np.abs(xs[x0:x1][None, :] - x) - half, 0.0)
+            dy = np.maximum(np.abs(ys[y0:y1][:, None] - y) - half, 0.0)
+            out[y0:y1, x0:x1] |= dx * dx + dy * dy < radius * radius
     return out
+
+
+def _pinholes(state: np.ndarray, nlev: np.ndarray, size: int) -> np.ndarray:
+    """Patches of UNKNOWN cells without any hit, at most `size` cells on each side, not
+    touching the window's edge, whose every neighbour is FREE."""
+    ny, nx = state.shape
+    patch = (state == UNKNOWN) & (nlev == 0)
+    labels, boxes = morphology.component_boxes(patch)
+    x, y, w, h = boxes.T
+    ok = (w <= size) & (h <= size) & (x > 0) & (y > 0) & (x + w < nx) & (y + h < ny)
+    ok[0] = False
+    ok[labels[morphology.dilate((state != FREE) & ~patch) & patch]] = False
+    return ok[labels]
 
 
 def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarray,

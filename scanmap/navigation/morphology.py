@@ -47,11 +47,18 @@ def min_filter(values: np.ndarray, size: int) -> np.ndarray:
                      np.ones((size, size), np.uint8), borderType=cv2.BORDER_REPLICATE)
 
 
+def component_boxes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """8-connected components of `mask`: labels (int32, 0 off the mask, 1..count) and
+    each label's bounding box as a row (x, y, width, height) (row 0: the background)."""
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(
+        np.ascontiguousarray(mask, dtype=np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    return labels, stats[:, :4]
+
+
 def components(mask: np.ndarray) -> tuple[np.ndarray, int, list[tuple[slice, slice]]]:
     """8-connected components of `mask`: labels (int32, 0 off the mask, 1..count), count,
     and each component's bounding box as (rows, columns) slices, in label order."""
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(
-        np.ascontiguousarray(mask, dtype=np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    labels, stats = component_boxes(mask)
     boxes = [(slice(int(y), int(y + h)), slice(int(x), int(x + w)))
-             for x, y, w, h in stats[1:, :4]]
-    return labels, count - 1, boxes
+             for x, y, w, h in stats[1:]]
+    return labels, len(stats) - 1, boxes

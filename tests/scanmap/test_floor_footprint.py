@@ -39,6 +39,14 @@ def test_floor_under_the_robot_seen_only_from_afar_is_free_where_it_stood():
     assert seg.is_floor[under].all()
     assert (seg.state[under] == FREE).all()
     assert not (seg.state[(d > robot.radius + seg.resolution) & (d < 0.4)] == FREE).all()
+    # Every cell the body overlaps, not only those whose centres it covers: the robot's
+    # own body never touches unknown space where it stood
+    gx, gy = np.meshgrid(x, y)
+    half = 0.5 * seg.resolution
+    gap = np.hypot(np.maximum(np.abs(gx) - half, 0.0), np.maximum(np.abs(gy) - half, 0.0))
+    body = gap < robot.radius - 1e-9  # not those it touches at one point
+    assert (seg.state[body] == FREE).all()
+    assert body.sum() > under.sum()
 
 
 def test_the_footprint_is_swept_along_the_path_the_robot_took_during_a_scan():
