@@ -10,20 +10,26 @@ second and commands a forward speed:
 
 * full speed while the nearest obstacle is beyond --slow m, slowing linearly to zero
   at --stop m;
-* at most --creep m/s while unknown space is nearer than any obstacle (the scanner
-  cannot see the floor right under and beside the robot: unknown is never free);
+* the same law on the path ahead (`mapper.obstacles.travel`: how far the robot's circle
+  can drive along its heading before it touches anything not known free), counting
+  unknown space there as an obstacle, and at most --creep m/s when unknown space is
+  what stops it (the scanner cannot see the floor near the robot: unknown is never free,
+  so the robot enters it only creeping). Unknown space beside the path (the unlit strip
+  at a wall's foot) does not slow it; obstacles beside it do;
 * zero when the data are stale (the newest scan older than --max-age), the sensor is
   faulted, the pose is invalid (not finite or beyond the map's coordinate limit: a
   diverged filter), or no scan has arrived yet.
 
 When the recording ends no new scans come, the data go stale and the robot stops. It
 prints what it did and the latency percentiles of the `nearest` calls; the summary also
-holds how far known free space reached (`clearance`) in the polls that met unknown.
+holds how far known free space reached (`clearance`) in the polls where unknown space
+was nearer than any obstacle, in any direction (`unknown_nearer_than_obstacles`).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections import Counter
 from collections.abc import Iterable, Iterator
@@ -33,7 +39,7 @@ from pathlib import Path
 import numpy as np
 from sim_data import DATA, ensure_recording
 
-from scanmap import Mapper, MapperConfig, Nearest, QueryStatus, Scan, ScanSource
+from scanmap import Mapper, MapperConfig, Nearest, QueryStatus, Scan, ScanSource, Travel
 from scanmap_driver import write_json
 
 RATE = 100.0  # Hz
@@ -49,17 +55,23 @@ class Limits:
     stop: float = 0.3
 
 
-def speed_command(nearest: Nearest, limits: Limits) -> tuple[float, str]:
-    """Forward speed (m/s) for a `nearest` answer, and why."""
-    if nearest.status in (QueryStatus.STALE, QueryStatus.FAULTED, QueryStatus.INVALID):
-        return 0.0, nearest.status.name.lower()
-    if not np.isfinite(nearest.age):
-        return 0.0, "no data"
-    ramp = (nearest.distance - limits.stop) / (limits.slow - limits.stop)
+def speed_command(nearest: Nearest, ahead: Travel, radius: float, limits: Limits
+                  ) -> tuple[float, str]:
+    """Forward speed (m/s) for a `nearest` answer and the free `ahead` travel of a robot
+    of `radius` (m), and why."""
+    for answer in (nearest, ahead):
+        if answer.status in (QueryStatus.STALE, QueryStatus.FAULTED, QueryStatus.INVALID):
+            return 0.0, answer.status.name.lower()
+        if not np.isfinite(answer.age):
+            return 0.0, "no data"
+    path = radius + ahead.distance  # as if what the path meets were straight ahead
+    distance = min(nearest.distance, path)
+    ramp = (distance - limits.stop) / (limits.slow - limits.stop)
     speed = limits.top * float(np.clip(ramp, 0.0, 1.0))
     reason = "clear" if ramp >= 1.0 else "slowing" if ramp > 0.0 else "obstacle"
-    if nearest.status == QueryStatus.UNKNOWN and speed > limits.creep:
-        return limits.creep, "unknown nearby"
+    if ahead.status == QueryStatus.UNKNOWN and path < nearest.distance \
+            and speed < limits.creep:
+        return limits.creep, "unknown ahead"
     return speed, reason
 
 
@@ -91,14 +103,16 @@ def control_loop(mapper: Mapper, mapping, limits: Limits, linger: float) -> dict
     start = next_tick = time.monotonic()
     while ended_at is None or time.monotonic() < ended_at + linger:
         pose = mapper.latest_pose
-        x, y = (pose[0, 3], pose[1, 3]) if pose is not None else (0.0, 0.0)
+        x, y, yaw = (pose[0, 3], pose[1, 3], math.atan2(pose[1, 0], pose[0, 0])) \
+            if pose is not None else (0.0, 0.0, 0.0)
         before = time.perf_counter_ns()
         nearest = mapper.obstacles.nearest(x, y)
         latencies.append(time.perf_counter_ns() - before)
-        speed, reason = speed_command(nearest, limits)
+        ahead = mapper.obstacles.travel((x, y, yaw), limits.slow)
+        speed, reason = speed_command(nearest, ahead, mapper.obstacles.robot.radius, limits)
         reasons[reason] += 1
         if nearest.status == QueryStatus.UNKNOWN and np.isfinite(nearest.age):
-            unknown_clearance.append(nearest.clearance)
+            unknown_clearance.append(nearest.clearance)  # unknown nearer than obstacles
         if reason != last_reason:
             transitions.append({"t": time.monotonic() - start, "reason": reason,
                                 "speed": speed, "status": nearest.status.name,
@@ -115,6 +129,7 @@ def control_loop(mapper: Mapper, mapping, limits: Limits, linger: float) -> dict
             "latency_us": {f"p{q}": float(np.percentile(micro, q)) for q in (50, 90, 99)}
             | {"max": float(micro.max())},
             "polls_by_reason": dict(reasons), "transitions": transitions,
+            "unknown_nearer_than_obstacles": len(unknown_clearance),
             "unknown_clearance_m": {f"p{q}": float(np.percentile(unknown_clearance, q))
                                     for q in (10, 50, 90)} if unknown_clearance else {},
             "final": transitions[-1], "scans_mapped": mapping.mapped,

@@ -8,11 +8,12 @@ import math
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from scanmap.navigation.obstacles import Nearest, QueryStatus
+from scanmap.navigation.floor import OBSTACLE, UNKNOWN
+from scanmap.navigation.obstacles import Nearest, QueryStatus, Travel
 
 from .conftest import run_example
 
-FRESH = {"clear", "slowing", "obstacle", "unknown nearby"}
+FRESH = {"clear", "slowing", "obstacle", "unknown ahead"}
 
 
 def test_the_controller_drives_on_fresh_data_and_stops_when_it_goes_stale(office_recording,
@@ -40,24 +41,37 @@ def test_the_controller_drives_on_fresh_data_and_stops_when_it_goes_stale(office
 
 @settings(deadline=None)  # the first example imports the controller (seconds under load)
 @given(distance=st.floats(0.0, 10.0), closer=st.floats(0.0, 10.0),
-       status=st.sampled_from(list(QueryStatus)), age=st.sampled_from([0.1, math.inf]))
-def test_the_control_law(examples_on_path, distance, closer, status, age):
+       travel=st.floats(0.0, 10.0), status=st.sampled_from(list(QueryStatus)),
+       ahead_unknown=st.booleans(), age=st.sampled_from([0.1, math.inf]))
+def test_the_control_law(examples_on_path, distance, closer, travel, status, ahead_unknown,
+                         age):
     import controller
 
-    limits = controller.Limits()
+    limits, radius = controller.Limits(), 0.25
+    kind = UNKNOWN if ahead_unknown else OBSTACLE
+    ahead_status = QueryStatus.UNKNOWN if ahead_unknown else QueryStatus.OK
 
-    def speed(d: float, s: QueryStatus = status) -> float:
-        return controller.speed_command(Nearest(d, 0.0, (0.0, 0.0), 0.0, age, s), limits)[0]
+    def speed(d: float, t: float = travel) -> float:
+        nearest = Nearest(d, 0.0, (0.0, 0.0), 0.0, age, status)
+        return controller.speed_command(nearest, Travel(t, kind, age, ahead_status), radius,
+                                        limits)[0]
 
     value = speed(distance)
     assert 0.0 <= value <= limits.top
     if status in (QueryStatus.STALE, QueryStatus.FAULTED, QueryStatus.INVALID) \
             or age == math.inf:
         assert value == 0.0
-    if status == QueryStatus.UNKNOWN:
-        assert value <= limits.creep
-    if distance <= limits.stop:
+        return
+    if distance <= limits.stop:  # an obstacle that near, in any direction: stop
         assert value == 0.0
-    if status == QueryStatus.OK and age < math.inf:
-        assert speed(min(distance, closer)) <= value  # slower when the obstacle is closer
-        assert speed(limits.slow + 1.0) == limits.top
+    if ahead_unknown and travel == 0.0:  # entering unknown space: creeping at most
+        assert value <= limits.creep
+    if not ahead_unknown and radius + travel <= limits.stop:
+        assert value == 0.0
+    # Unknown space ahead is an obstacle to the law, but for creeping into it
+    law = limits.top * min(max((min(distance, radius + travel) - limits.stop)
+                               / (limits.slow - limits.stop), 0.0), 1.0)
+    assert value == law or (ahead_unknown and law < value == limits.creep)
+    assert speed(min(distance, closer)) <= value  # slower when the obstacle is closer
+    assert speed(distance, min(travel, closer)) <= max(value, limits.creep)
+    assert speed(limits.slow + 1.0, limits.slow + 1.0) == limits.top
