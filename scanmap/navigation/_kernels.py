@@ -864,12 +864,16 @@ def travel_kernel(qx, qy, yaw, radius, max_distance, state, geo):
     it meets a cell square not FREE (cells beyond the window count as UNKNOWN), capped at
     max_distance (kind FREE then); 0 if it overlaps one already."""
     ox, oy, res, nx, ny = geo[0], geo[1], geo[2], int(geo[3]), int(geo[4])
+    if not (ox <= qx < ox + nx * res and oy <= qy < oy + ny * res):
+        return 0.0, np.int64(UNKNOWN)  # in the unknown space round the window
     c, s = math.cos(yaw), math.sin(yaw)
     reach = max_distance + radius + res
-    x_lo = math.floor((qx - reach - ox) / res)
-    x_hi = math.floor((qx + reach - ox) / res)
-    y_lo = math.floor((qy - reach - oy) / res)
-    y_hi = math.floor((qy + reach - oy) / res)
+    # Beyond the ring of cells round the window nothing is met first: moving out of the
+    # window, the disc meets that ring (unknown) before anything farther
+    x_lo = max(math.floor((qx - reach - ox) / res), -1)
+    x_hi = min(math.floor((qx + reach - ox) / res), nx)
+    y_lo = max(math.floor((qy - reach - oy) / res), -1)
+    y_hi = min(math.floor((qy + reach - oy) / res), ny)
     half_diag = res * math.sqrt(0.5)
     best, kind = max_distance, np.int64(FREE)
     for iy in range(y_lo, y_hi + 1):

@@ -91,6 +91,10 @@ def test_touching_now_gives_zero_and_the_window_edge_is_unknown():
     edge = obstacle_map(np.full((40, 40), FREE, np.uint8)).travel((0.0, 0.0, 0.0), 3.0)
     assert edge.distance == pytest.approx(1.0 - ROBOT.radius)  # the window ends at x = 1
     assert edge.status == QueryStatus.UNKNOWN
+    huge = obstacle_map(np.full((40, 40), FREE, np.uint8)).travel((0.0, 0.0, 0.7), 1e6)
+    assert huge.distance == pytest.approx((1.0 - ROBOT.radius) / math.cos(0.7))
+    outside = obstacle_map(np.full((40, 40), FREE, np.uint8)).travel((5.0, 5.0, 0.0), 1e6)
+    assert outside.distance == 0.0 and outside.status == QueryStatus.UNKNOWN
 
 
 def test_far_from_the_origin_the_answer_is_the_same():
