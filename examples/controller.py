@@ -70,8 +70,8 @@ def speed_command(nearest: Nearest, ahead: Travel, radius: float, limits: Limits
     speed = limits.top * float(np.clip(ramp, 0.0, 1.0))
     reason = "clear" if ramp >= 1.0 else "slowing" if ramp > 0.0 else "obstacle"
     if ahead.status == QueryStatus.UNKNOWN and path < nearest.distance \
-            and speed < limits.creep:
-        return limits.creep, "unknown ahead"
+            and nearest.distance > limits.stop and speed < limits.creep:
+        return limits.creep, "unknown ahead"  # no obstacle within --stop m: creep into it
     return speed, reason
 
 
