@@ -4,7 +4,7 @@ Numba compiles each kernel on its first call (or loads it from its cache), which
 seconds: long enough for a first live scan's obstacle field to be stale when it is
 published. `warm_up` runs the whole per-scan pipeline once on two synthetic scans of a
 square room (registration, fusion with clearing, floor segmentation, distance fields,
-queries) in a throwaway mapper.
+every obstacle query) in a throwaway mapper.
 """
 
 from __future__ import annotations
@@ -43,3 +43,6 @@ def warm_up(mapper: Any) -> None:
     mapper.obstacles.update(mapper.grid)
     mapper.obstacles.nearest(0.0, 0.0)
     mapper.obstacles.distance(np.zeros((2, 2)))
+    mapper.obstacles.travel((0.0, 0.0, 0.0))  # a controller's other queries
+    mapper.obstacles.polar(0.0, 0.0, 0.0)
+    mapper.obstacles.clearance((0.0, 0.0, 0.0), np.array([[0.2, 0.1], [-0.2, 0.1], [0.0, -0.1]]))
