@@ -502,28 +502,35 @@ def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
     out = np.zeros((ny, nx), bool)
     xs, ys = layers.cell_centers()
     reach = math.ceil(radius / layers.resolution)
+    half = 0.5 * layers.resolution  # from a cell's centre to its square's nearest point
     for x, y in layers.stood:
         cx = int(np.floor((x - layers.origin[0]) / layers.resolution))
         cy = int(np.floor((y - layers.origin[1]) / layers.resolution))
         x0, x1 = max(cx - reach, 0), min(cx + reach + 1, nx)
         y0, y1 = max(cy - reach, 0), min(cy + reach + 1, ny)
         if x0 < x1 and y0 < y1:
-            half = 0.5 * layers.resolution  # from the centre to the square's nearest point
             dx = np.maximum(np.abs(xs[x0:x1][None, :] - x) - half, 0.0)
             dy = np.maximum(np.abs(ys[y0:y1][:, None] - y) - half, 0.0)
             out[y0:y1, x0:x1] |= dx * dx + dy * dy < radius * radius
     return out
 
 
-def _pinholes(state: np.ndarray, nlev: np.ndarray, size: int) -> np.ndarray:
-    """Patches of UNKNOWN cells without any hit, at most `size` cells on each side, not
-    touching the window's edge, whose every neighbour is FREE."""
-    ny, nx = state.shape
-    patch = (state == UNKNOWN) & (nlev == 0)
-    labels, boxes = morphology.component_boxes(patch)
+def _small_patches(mask: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Components of `mask` (labels) and, per label, whether it is at most `size` cells on
+    each side and does not touch the window's edge (False for label 0, off the mask)."""
+    ny, nx = mask.shape
+    labels, boxes = morphology.component_boxes(mask)
     x, y, w, h = boxes.T
     ok = (w <= size) & (h <= size) & (x > 0) & (y > 0) & (x + w < nx) & (y + h < ny)
     ok[0] = False
+    return labels, ok
+
+
+def _pinholes(state: np.ndarray, nlev: np.ndarray, size: int) -> np.ndarray:
+    """Patches of UNKNOWN cells without any hit, at most `size` cells on each side, not
+    touching the window's edge, whose every neighbour is FREE."""
+    patch = (state == UNKNOWN) & (nlev == 0)
+    labels, ok = _small_patches(patch, size)
     ok[labels[morphology.dilate((state != FREE) & ~patch) & patch]] = False
     return ok[labels]
 
@@ -533,16 +540,10 @@ def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarra
     """Patches of cells without any hit, at most `size` cells on each side, inside floor
     (not touching the window's edge) whose heights around them differ by at most `step`,
     and showing no drop-off."""
-    ny, nx = is_floor.shape
-    labels, count, boxes = morphology.components(~is_floor)
+    labels, ok = _small_patches(~is_floor, size)
+    count = len(ok) - 1
     if not count:
         return np.zeros(is_floor.shape, bool)
-    ok = np.ones(count + 1, bool)
-    ok[0] = False
-    for index, (rows, cols) in enumerate(boxes, start=1):
-        ok[index] = (rows.stop - rows.start <= size and cols.stop - cols.start <= size
-                     and rows.start > 0 and cols.start > 0 and rows.stop < ny
-                     and cols.stop < nx)
     ok[labels[(nlev > 0) | drop]] = False
     # The ring of a patch: floor cells next to it (a patch is a whole component of the
     # cells off the floor, so every neighbour outside it is floor)
