@@ -7,6 +7,8 @@ from collections import deque
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import ndimage
 
 from scanmap.grid import _kernels as gk
@@ -18,6 +20,7 @@ from scanmap.navigation.floor import (
     OBSTACLE,
     FloorConfig,
     RobotShape,
+    _fit_plane,
     ransac_plane,
     segment,
 )
@@ -204,3 +207,23 @@ def test_a_2d_laser_map_needs_an_assumed_floor():
 def test_robot_shape_rejects_nonsense(kwargs):
     with pytest.raises(MapError):
         RobotShape(**kwargs)
+
+
+@settings(max_examples=60, deadline=None)
+@given(tilt=st.floats(0.0, 1.2), azimuth=st.floats(0.0, 6.3), far=st.sampled_from([0.0, 1e5]),
+       noise=st.sampled_from([0.0, 1e-3, 0.02]), seed=st.integers(0, 2**31 - 1))
+def test_the_plane_fit_is_the_svd_least_squares_plane(tilt, azimuth, far, noise, seed):
+    """The scatter-matrix fit against the plain SVD of the centred points, near the origin
+    and 100 km from it, with no noise to a 2 cm spread."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-2.0, 2.0, (400, 2)) + far
+    slope = math.tan(tilt) * np.array([math.cos(azimuth), math.sin(azimuth)])
+    z = 0.3 + (xy - far) @ slope + rng.normal(0.0, noise, 400)
+    p = np.column_stack([xy, z])
+    normal, offset = _fit_plane(p)
+    centre = p.mean(axis=0)
+    reference = np.linalg.svd(p - centre, full_matrices=False)[2][-1]
+    reference = -reference if reference[2] < 0 else reference
+    np.testing.assert_allclose(normal, reference, atol=1e-9)
+    assert offset == pytest.approx(float(reference @ centre), rel=1e-12, abs=1e-9)
+    assert normal[2] >= 0 and np.linalg.norm(normal) == pytest.approx(1.0)
