@@ -433,13 +433,11 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
     out = np.zeros((ny, nx), bool)
     if not low.any():
         return out
-    labels, _, boxes = morphology.components(dark)
+    labels, boxes, ok = _small_patches(dark, size, margin=2)
     near = morphology.max_filter(low, 5)
     near_drop = morphology.max_filter(drop, 3)
-    for index, (rows, cols) in enumerate(boxes, start=1):
-        if (rows.stop - rows.start > size or cols.stop - cols.start > size or rows.start < 2
-                or cols.start < 2 or rows.stop > ny - 2 or cols.stop > nx - 2):
-            continue
+    for index in np.flatnonzero(ok):
+        rows, cols = morphology.box_slices(boxes[index])
         patch = labels[rows, cols] == index
         if near[rows, cols][patch].any() and not near_drop[rows, cols][patch].any():
             out[rows, cols] |= patch
@@ -469,14 +467,11 @@ def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     """Patches of `bare` cells (no hit around them) at most `size` cells on each side, not
     at the window's edge nor next to a drop-off, whose hits within two cells are all floor
     with heights differing by at most `step`: gaps between the laser's samples."""
-    ny, nx = bare.shape
-    labels, _, boxes = morphology.components(bare)
-    out = np.zeros((ny, nx), bool)
+    labels, boxes, ok = _small_patches(bare, size, margin=2)
+    out = np.zeros(bare.shape, bool)
     near_drop = morphology.dilate(drop)
-    for index, (rows, cols) in enumerate(boxes, start=1):
-        if (rows.stop - rows.start > size or cols.stop - cols.start > size or rows.start < 2
-                or cols.start < 2 or rows.stop > ny - 2 or cols.stop > nx - 2):
-            continue
+    for index in np.flatnonzero(ok):
+        rows, cols = morphology.box_slices(boxes[index])
         y0, y1, x0, x1 = rows.start - 2, rows.stop + 2, cols.start - 2, cols.stop + 2
         patch = labels[rows, cols] == index
         if near_drop[rows, cols][patch].any():
@@ -521,22 +516,25 @@ def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
     return out
 
 
-def _small_patches(mask: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """Components of `mask` (labels) and, per label, whether it is at most `size` cells on
-    each side and does not touch the window's edge (False for label 0, off the mask)."""
+def _small_patches(mask: np.ndarray, size: int, margin: int = 1
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Components of `mask`: labels, each label's box (x, y, width, height) and whether it
+    is at most `size` cells on each side and at least `margin` cells from the window's
+    edge (False for label 0, off the mask)."""
     ny, nx = mask.shape
     labels, boxes = morphology.component_boxes(mask)
     x, y, w, h = boxes.T
-    ok = (w <= size) & (h <= size) & (x > 0) & (y > 0) & (x + w < nx) & (y + h < ny)
+    ok = (w <= size) & (h <= size) & (x >= margin) & (y >= margin) \
+        & (x + w <= nx - margin) & (y + h <= ny - margin)
     ok[0] = False
-    return labels, ok
+    return labels, boxes, ok
 
 
 def _pinholes(state: np.ndarray, nlev: np.ndarray, size: int) -> np.ndarray:
     """Patches of UNKNOWN cells without any hit, at most `size` cells on each side, not
     touching the window's edge, whose every neighbour is FREE."""
     patch = (state == UNKNOWN) & (nlev == 0)
-    labels, ok = _small_patches(patch, size)
+    labels, _, ok = _small_patches(patch, size)
     ok[labels[morphology.dilate((state != FREE) & ~patch) & patch]] = False
     return ok[labels]
 
@@ -546,7 +544,7 @@ def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarra
     """Patches of cells without any hit, at most `size` cells on each side, inside floor
     (not touching the window's edge) whose heights around them differ by at most `step`,
     and showing no drop-off."""
-    labels, ok = _small_patches(~is_floor, size)
+    labels, _, ok = _small_patches(~is_floor, size)
     count = len(ok) - 1
     if not count:
         return np.zeros(is_floor.shape, bool)

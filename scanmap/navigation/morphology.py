@@ -55,10 +55,7 @@ def component_boxes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return labels, stats[:, :4]
 
 
-def components(mask: np.ndarray) -> tuple[np.ndarray, int, list[tuple[slice, slice]]]:
-    """8-connected components of `mask`: labels (int32, 0 off the mask, 1..count), count,
-    and each component's bounding box as (rows, columns) slices, in label order."""
-    labels, stats = component_boxes(mask)
-    boxes = [(slice(int(y), int(y + h)), slice(int(x), int(x + w)))
-             for x, y, w, h in stats[1:]]
-    return labels, len(stats) - 1, boxes
+def box_slices(box: np.ndarray) -> tuple[slice, slice]:
+    """(rows, columns) slices of a `component_boxes` box (x, y, width, height)."""
+    x, y, w, h = map(int, box)
+    return slice(y, y + h), slice(x, x + w)
