@@ -184,6 +184,34 @@ class Scene:
         return replace(self, objects=self.objects + tuple(p.at_scan(index) for p in self.people),
                        people=())
 
+    def moved(self, dx: float, dy: float, yaw: float = 0.0) -> Scene:
+        """The same scene turned by `yaw` (rad) about the origin, then shifted by (dx, dy)
+        m: objects, floor regions (and their gradients), people's tracks and scan poses.
+        The world is the same; only how it falls on a map's cells changes (a hazard's edge
+        off the cell boundaries, walls at an angle to the grid)."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        turn = np.array([[c, -s], [s, c]])
+        shift = np.array([dx, dy], dtype=np.float64)
+
+        def place(xy: Any) -> np.ndarray:
+            return np.asarray(xy, dtype=np.float64) @ turn.T + shift
+
+        def placed(thing: Box | Cylinder) -> Box | Cylinder:
+            x, y = place(thing.center[:2])
+            center = (float(x), float(y), thing.center[2])
+            if isinstance(thing, Box):
+                return replace(thing, center=center, yaw=thing.yaw + yaw)
+            return replace(thing, center=center)
+
+        regions = tuple(replace(r, polygon=tuple(map(tuple, place(r.polygon).tolist())),
+                                gradient=tuple((turn @ np.asarray(r.gradient)).tolist()))
+                        for r in self.floor_regions)
+        people = tuple(replace(p, track=np.column_stack([p.track[:, 0], place(p.track[:, 1:])]))
+                       for p in self.people)
+        poses = np.column_stack([place(self.scan_poses[:, :2]), self.scan_poses[:, 2] + yaw])
+        return replace(self, objects=tuple(placed(o) for o in self.objects),
+                       floor_regions=regions, people=people, scan_poses=poses)
+
     def floor_at(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """True floor height and slope (rad) at the points (x, y) in `map`."""
         x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)

@@ -10,8 +10,11 @@ import operator
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from scanmap_driver.errors import SceneError
+from scanmap_driver.sim.ideal import ideal_scans
 from scanmap_driver.sim.scene import (
     FORMAT,
     Box,
@@ -167,3 +170,41 @@ def test_scan_poses_keep_the_robot_clear_of_objects():
                 low_step = isinstance(obj, Box) and obj.center[2] + obj.size[2] / 2 < 0.05
                 assert low_step or gap > 0.25, (name, obj.name, x, y)
         assert footprint_corners(scene.objects[0]).shape == (4, 2)
+
+
+@settings(max_examples=40, deadline=None)
+@given(dx=st.floats(-50.0, 50.0), dy=st.floats(-50.0, 50.0), yaw=st.floats(-math.pi, math.pi),
+       u=st.floats(0.0, 1.0), v=st.floats(0.0, 1.0))
+def test_a_moved_scene_is_the_same_world(dx, dy, yaw, u, v):
+    scene = builtin_scene("hazards")
+    moved = scene.moved(dx, dy, yaw)
+    low, high = scene.bounds()
+    xy = low + np.array([u, v]) * (high - low)
+    c, s = math.cos(yaw), math.sin(yaw)
+    there = np.array([c * xy[0] - s * xy[1] + dx, s * xy[0] + c * xy[1] + dy])
+    assert np.allclose(moved.floor_at(*there), scene.floor_at(*xy), atol=1e-9)
+    assert np.allclose(moved.scan_poses[:, 2] - scene.scan_poses[:, 2], yaw)
+    first = scene.scan_poses[0, :2]
+    assert np.allclose(moved.scan_poses[0, :2],
+                       [c * first[0] - s * first[1] + dx, s * first[0] + c * first[1] + dy])
+
+
+def test_a_moved_scene_gives_the_same_scans():
+    # The scanner sees the same world from the same place in it: the same points in its
+    # own frame, wherever the world lies on the map (floor regions, a ramp, boxes)
+    scene = builtin_scene("hazards")
+    moved = scene.moved(0.013, -0.021, math.radians(33.0))
+    for ours, theirs in zip(ideal_scans(scene, scans=2), ideal_scans(moved, scans=2),
+                            strict=True):
+        assert len(ours.true_points) > 10_000
+        assert np.allclose(ours.true_points, theirs.true_points, atol=1e-6)
+
+
+def test_a_moved_scene_moves_its_people():
+    scene = builtin_scene("people")
+    moved = scene.moved(1.0, -2.0, math.pi / 2)
+    for index in (0.0, 2.5, 7.0):
+        for ours, theirs in zip(scene.at_scan(index).objects, moved.at_scan(index).objects,
+                                strict=True):
+            x, y, z = ours.center
+            assert np.allclose(theirs.center, (-y + 1.0, x - 2.0, z))
