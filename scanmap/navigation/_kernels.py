@@ -172,13 +172,32 @@ def ring_heights_reference(labels: np.ndarray, count: int, is_floor: np.ndarray,
     return low, high
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _off_floor(known: np.ndarray, hit: np.ndarray, y: int, x: int) -> bool:
+    """A hit that is not known floor at (y, x) (False outside the grid)."""
+    ny, nx = known.shape
+    return 0 <= y < ny and 0 <= x < nx and hit[y, x] and not known[y, x]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _inner_corner(known: np.ndarray, hit: np.ndarray, y: int, x: int, dy: int,
+                  dx: int) -> bool:
+    """Whether both row and column neighbours of (y, x) on one side of the diagonal
+    (dy, dx) are hits off the floor."""
+    return (_off_floor(known, hit, y + dy, x) and _off_floor(known, hit, y, x - dx)) or (
+        _off_floor(known, hit, y, x + dx) and _off_floor(known, hit, y - dy, x))
+
+
 @njit(cache=True, nogil=True)
 def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: int,
                  step: float) -> np.ndarray:
     """`known` and the cells without a hit lying between two known cells along a row, a
     column or a diagonal, at most `size` + 1 cells apart (metric: a diagonal step is
     sqrt(2) cells), heights within `step`, no other cell with a hit between them
-    (`interpolated_reference` is the plain version)."""
+    (`interpolated_reference` is the plain version). Not along a diagonal through the
+    inner corner of hits off the floor (both of the cell's row and column neighbours on
+    one side of the diagonal): the floor's edge turns there (a hole's or a wall's corner),
+    and the diagonal between two rim cells runs outside the floor."""
     ny, nx = known.shape
     out = known.copy()
     reach = size + 1
@@ -188,6 +207,8 @@ def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: 
                 continue
             for d in range(4):
                 dy, dx = (0, 1, 1, 1)[d], (1, 0, 1, -1)[d]
+                if d >= 2 and _inner_corner(known, hit, y, x, dy, dx):
+                    continue
                 length = math.sqrt(dy * dy + dx * dx)
                 ka, kb = 0, 0
                 ha, hb = np.nan, np.nan
@@ -225,7 +246,15 @@ def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarr
     pad = size + 1
     p_inf, p_known = np.pad(informative, pad), np.pad(known, pad)
     p_h = np.pad(heights, pad, constant_values=np.nan)
+    p_off = p_inf & ~p_known
+
+    def off_floor(oy: int, ox: int) -> np.ndarray:
+        return p_off[pad + oy:pad + oy + ny, pad + ox:pad + ox + nx]
+
     for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        corner = np.zeros((ny, nx), bool)
+        if dy and dx:  # the inner corner of hits off the floor on one side of the diagonal
+            corner = off_floor(dy, 0) & off_floor(0, -dx) | off_floor(0, dx) & off_floor(-dy, 0)
         ends = []
         for sign in (1, -1):
             found = np.zeros((ny, nx), bool)
@@ -244,7 +273,8 @@ def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarr
         (ok_a, d_a, h_a), (ok_b, d_b, h_b) = ends
         span = (d_a + d_b) * np.hypot(dy, dx)
         with np.errstate(invalid="ignore"):
-            out |= ok_a & ok_b & (span <= size + 1) & (np.abs(h_a - h_b) <= step) & ~hit
+            out |= ok_a & ok_b & (span <= size + 1) & (np.abs(h_a - h_b) <= step) & ~hit \
+                & ~corner
     return out
 
 
@@ -281,7 +311,10 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float) -> np.n
 def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -> np.ndarray:
     """Slope (rad) of the plane fitted to each candidate cell's floor heights and those of
     the candidates within `radius` cells whose heights differ from it by at most
-    `max_step` (the other side of a step is another surface); NaN with fewer than six."""
+    `max_step` (the other side of a step is another surface). With fewer than six, or all
+    on one line (the foot of a wall, a laser line's arc), the slope along them: a chain of
+    cells each a little lower than the last is steep even where no plane fits it. NaN with
+    fewer than three."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
     for y in range(ny):
@@ -304,16 +337,17 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
                         syy += py * py
                         sxz += px * dz
                         syz += py * dz
-            if n < 6:
+            if n < 3:
                 continue
             cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
             cxz, cyz = sxz - sx * sz / n, syz - sy * sz / n
             det = cxx * cyy - cxy * cxy
-            if det <= 1e-12 * res ** 4:
-                continue
-            gx = (cyy * cxz - cxy * cyz) / det
-            gy = (cxx * cyz - cxy * cxz) / det
-            out[y, x] = math.atan(math.hypot(gx, gy))
+            if n >= 6 and det > 1e-12 * res ** 4:
+                gx = (cyy * cxz - cxy * cyz) / det
+                gy = (cxx * cyz - cxy * cxz) / det
+                out[y, x] = math.atan(math.hypot(gx, gy))
+            elif cxx + cyy > 0.0:  # the least-squares slope along their principal line
+                out[y, x] = math.atan(math.hypot(cxz, cyz) / (cxx + cyy))
     return out
 
 

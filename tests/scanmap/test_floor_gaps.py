@@ -140,6 +140,21 @@ def test_a_diagonal_gap_is_measured_in_metres():
     assert interpolated(flipped)[2, 2]
 
 
+@pytest.mark.parametrize("off_floor", [(), ((4, 3),), ((5, 4),), ((4, 3), (5, 4))])
+def test_no_diagonal_across_the_inner_corner_of_hits_off_the_floor(off_floor):
+    # A hole's corner between two rim cells that hold floor on their outer halves: the
+    # cell between them on the diagonal, with hits off the floor (the hole's) both left
+    # of it and below it, lies inside the hole, not in a gap between floor samples
+    known = np.zeros((9, 9), bool)
+    known[3, 3] = known[5, 5] = True  # the rim cells on the diagonal through (4, 4)
+    hit = known.copy()
+    for cell in off_floor:
+        hit[cell] = True
+    assert interpolated(known, hit)[4, 4] == (len(off_floor) < 2)
+    flipped = interpolated(known[:, ::-1], hit[:, ::-1])  # the other diagonal
+    assert flipped[4, 4] == (len(off_floor) < 2)
+
+
 @pytest.mark.parametrize("spoil", ["hit", "step"])
 def test_no_interpolation_across_a_hit_that_is_not_floor_nor_across_a_step(spoil):
     known = np.zeros((7, 12), bool)

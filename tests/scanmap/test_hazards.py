@@ -49,6 +49,21 @@ def test_no_drop_off_is_free_after_any_scan(hazards):
     assert all(drop_measures(step.seg, truth)["drop_free"] == 0 for step, truth in steps)
 
 
+@pytest.mark.parametrize("dx, dy, yaw_deg", [
+    (0.01, 0.0, 0.0),  # the dock's step inside a cell: wall-foot hits step down to it
+    (0.025, 0.025, 0.0),  # edges through cell centres: a hole's corner between rim cells
+    (0.011, 0.03, -33.0),  # every edge at an angle to the cells
+])
+def test_no_drop_off_is_free_wherever_the_scene_lies_on_the_cells(dx, dy, yaw_deg):
+    scene = builtin_scene("hazards").moved(dx, dy, math.radians(yaw_deg))
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
+    for step in mapped(scene, SCANS):
+        measures = drop_measures(step.seg, truth_classes(step.seg, raster))
+        assert measures["drop_free"] == 0, f"scan {step.index}"
+    assert measures["drop_found"] > 0.95 * measures["drop_cells"]
+    assert ramp_f1(step.seg, truth_classes(step.seg, raster), step.hits, scene) >= 0.95
+
+
 def test_ramps_within_max_slope_are_floor_and_steeper_ones_are_not(hazards):
     scene, steps = hazards
     step, truth = steps[-1]

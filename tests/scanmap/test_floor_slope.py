@@ -1,0 +1,52 @@
+"""The floor's local slope (`_kernels.local_slope`) against the closed form of a plane, and
+a chain of cells too thin for a plane: the foot of a wall, a laser line's arc."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from scanmap.navigation import _kernels as nk
+
+RES = 0.05
+STEP = 0.05
+REACH = 2
+
+
+@settings(max_examples=60, deadline=None)
+@given(gx=st.floats(-0.6, 0.6), gy=st.floats(-0.6, 0.6), base=st.floats(-100.0, 100.0))
+def test_the_slope_of_a_plane_is_its_gradient(gx, gy, base):
+    y, x = np.mgrid[0:9, 0:9] * RES
+    heights = (base + gx * x + gy * y).astype(np.float64)
+    slope = nk.local_slope(heights, REACH, 10.0, RES)
+    assert math.isclose(slope[4, 4], math.atan(math.hypot(gx, gy)), abs_tol=1e-4)
+
+
+@settings(max_examples=60, deadline=None)
+@given(g=st.floats(-1.0, 1.0), direction=st.sampled_from([(0, 1), (1, 0), (1, 1), (1, -1)]))
+def test_a_line_of_cells_has_the_slope_along_it(g, direction):
+    # One cell wide, so no plane fits: the slope along the line, steep or not
+    dy, dx = direction
+    heights = np.full((11, 11), np.nan)
+    for k in range(-5, 6):
+        heights[5 + k * dy, 5 + k * dx] = g * k * RES * math.hypot(dy, dx)
+    slope = nk.local_slope(heights, REACH, 10.0, RES)
+    assert math.isclose(slope[5, 5], math.atan(abs(g)), abs_tol=1e-4)
+
+
+def test_a_staircase_of_small_steps_along_a_wall_is_steep():
+    # Each cell 4 cm below the last (within a 5 cm step of its neighbour) along a row: a
+    # 39 deg slope down, not floor to drive on, though every step alone is climbable
+    heights = np.full((7, 12), np.nan)
+    heights[3] = -0.04 * np.arange(12)
+    slope = nk.local_slope(heights, REACH, STEP, RES)
+    assert (slope[3, 1:-1] > math.radians(30.0)).all()
+
+
+def test_too_few_cells_have_no_slope():
+    heights = np.full((5, 5), np.nan)
+    heights[2, 2] = heights[2, 3] = 0.0
+    assert np.isnan(nk.local_slope(heights, REACH, STEP, RES)).all()
