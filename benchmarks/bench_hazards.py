@@ -15,6 +15,10 @@ slope). Rows:
   and the share within one cell.
 * ramp F1: floor (traversable surface) against truth over the observed cells (any hit)
   of the sloped floor regions, a ramp within max_slope and one steeper.
+* placed anew: the same scene shifted within a cell and turned (`Scene.moved`), so its
+  edges fall inside cells and at angles to them, not on the cells' boundaries as built:
+  the worst free drop-off count after any scan, the worst edge, the least and the mean
+  ramp F1 over PLACEMENTS placements.
 * ghost cells: cells within SEE_THROUGH of the robot (farther, nothing sees through the
   space a person left) that a person left at least three scans ago (free in the static
   truth, covered by nobody since) and the map still calls OBSTACLE, summed over the
@@ -68,6 +72,8 @@ SEE_THROUGH = 2.0  # m from the robot within which a person's former cells are c
 BAND_BIN = 0.025  # m, height bins of the robot's band for the see-through truth
 RAY_STEP = 0.01  # m, sampling step along the true rays for the see-through truth
 SEE_THROUGH_SHARE = 0.95  # share of the band's bins crossed: the cell was seen through
+PLACEMENTS = 8  # placements of the hazards scene on the cells (`placed_run`)
+CELL = GridConfig().resolution  # m
 
 
 @dataclass(frozen=True)
@@ -155,11 +161,12 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
     return 2.0 * tp / max(int(predicted.sum()) + int(actual.sum()), 1)
 
 
-def hazard_run(scans: int | None = None, seed: int = 0) -> dict[str, float]:
-    """The drop-off and ramp measures on the built-in `hazards` scene after its last scan,
-    the worst count of free drop-off cells, the worst edge error and the least share of
-    the edge within one cell over all scans."""
-    scene = builtin_scene("hazards")
+def hazard_run(scans: int | None = None, seed: int = 0,
+               scene: Scene | None = None) -> dict[str, float]:
+    """The drop-off and ramp measures on a scene with hazards (the built-in `hazards`)
+    after its last scan, the worst count of free drop-off cells, the worst edge error and
+    the least share of the edge within one cell over all scans."""
+    scene = scene or builtin_scene("hazards")
     raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height,
                           max_slope=PARAMS.max_slope)
     worst, edge_worst, within_worst = 0, 0.0, 1.0
@@ -212,6 +219,29 @@ def share_of_bits(mask: np.ndarray, bits: int) -> np.ndarray:
     for bit in range(bits):
         count += ((mask >> np.uint64(bit)) & np.uint64(1)).astype(np.int64)
     return count / bits
+
+
+def placements(count: int, seed: int = 1) -> list[tuple[float, float, float]]:
+    """`count` placements (dx, dy m, yaw rad) of a scene on the cells: shifts within a
+    cell, the first half square to the cells, the rest turned by up to 45 deg."""
+    rng = np.random.default_rng(seed)
+    shifts = rng.uniform(0.0, CELL, (count, 2))
+    yaws = np.where(np.arange(count) < count // 2, 0.0, rng.uniform(-np.pi / 4, np.pi / 4, count))
+    return [(float(x), float(y), float(a)) for (x, y), a in zip(shifts, yaws, strict=True)]
+
+
+def placed_run(count: int, scans: int | None = None) -> dict[str, float]:
+    """`hazard_run` on the built-in `hazards` scene moved to `placements(count)`: the worst
+    and the mean over them (a method must not hold only where the edges meet the cells'
+    boundaries)."""
+    runs = [hazard_run(scans, scene=builtin_scene("hazards").moved(*placed))
+            for placed in placements(count)]
+    return {"placements": count,
+            "drop_free_any_scan": max(r["drop_free_any_scan"] for r in runs),
+            "edge_error_cells": max(r["edge_error_cells"] for r in runs),
+            "edge_within_one": min(r["edge_within_one"] for r in runs),
+            "ramp_f1_min": min(r["ramp_f1"] for r in runs),
+            "ramp_f1_mean": float(np.mean([r["ramp_f1"] for r in runs]))}
 
 
 def person_cells(scene: Scene, truth_shape_of: Segmentation, scans: int) -> np.ndarray:
@@ -287,6 +317,7 @@ def time_per_scan(scans: int = 8, seed: int = 0) -> dict[str, float]:
 def measure(quick: bool) -> dict[str, dict[str, float]]:
     """Every measure of the module docstring (fewer scans with `quick`)."""
     return {"hazards": hazard_run(8 if quick else None),
+            "placed": placed_run(3 if quick else PLACEMENTS, 8 if quick else None),
             "people": people_run(24 if quick else None),
             "timing": time_per_scan(4 if quick else 8)}
 
@@ -294,7 +325,7 @@ def measure(quick: bool) -> dict[str, dict[str, float]]:
 def run(quick: bool = False) -> list[dict]:
     """Benchmark rows (see the module docstring) for `python -m benchmarks`."""
     m = measure(quick)
-    h, people, timing = m["hazards"], m["people"], m["timing"]
+    h, placed, people, timing = m["hazards"], m["placed"], m["people"], m["timing"]
     per_scan = 1e-3 * timing["per_scan_ms"]
     settings = "ideal scans at true poses, 5 cm cells, default robot"
     return [
@@ -304,6 +335,11 @@ def run(quick: bool = False) -> list[dict]:
         {"stage": "hazards", "method": "ramp floor F1", "settings": "7 and 20 deg ramps",
          "median_s": None, "error": 1.0 - h["ramp_f1"], "error_unit": "1 - F1 (goal 0.03)",
          "peers": {}},
+        {"stage": "hazards", "method": "drop-off cells free, scene placed anew on the cells",
+         "settings": f"built-in hazards scene shifted within a cell and turned, "
+         f"{placed['placements']} placements, {settings}; worst over them",
+         "median_s": None, "error": placed["drop_free_any_scan"],
+         "error_unit": "cells after any scan (goal 0)", **placed, "peers": {}},
         {"stage": "hazards", "method": "ghost cells three scans after a person left",
          "settings": f"built-in people scene, {settings}", "median_s": None,
          "error": people["ghost_cells"], "error_unit": f"cells of {people['left_cells']} "
