@@ -119,10 +119,16 @@ class FloorConfig:
     thickness: most vertical extent (m) of a level that can be floor; clearance: free
     height above it (m) that a floor cell needs.
     plane_tolerance: RANSAC inlier distance (m). max_slope: steepest floor plane (rad).
-    min_plane_cells: support of a reported plane. fill_radius: how far (m) the height of
-    a floor cell is carried into cells without observed floor (the largest floor plane
-    gives it beyond). detect: False for data that never see the floor (a 2-D laser:
-    every point at one height), which then rely on the `fallback_floor` of `segment`.
+    min_plane_cells: support of a reported plane. min_seed_cells, seed_tolerance: the
+    floor grows from the largest plane's inliers, but from a patch of fewer than
+    min_seed_cells of them (8-connected) only where within seed_tolerance (m) of the
+    plane. A lone inlier may be the foot of a wall, hit up to plane_tolerance off the
+    floor beside a floor a step lower (a dock 6 cm down), from which the floor would grow
+    down there; lone floor samples (far off, between furniture) lie closer.
+    fill_radius: how far (m) the height of a floor cell is carried into cells without
+    observed floor (the largest floor plane gives it beyond). detect: False for data
+    that never see the floor (a 2-D laser: every point at one height), which then rely
+    on the `fallback_floor` of `segment`.
     min_coverage: fraction of the robot band's height bins that rays must have seen free
     for a cell to be FREE (as Nav2's voxel layer tolerates unknown voxels in a column).
     This scanner rarely sees every bin of a column (rays at 0.7-1 m over a cell 2 m away
@@ -163,6 +169,8 @@ class FloorConfig:
     plane_tolerance: float = 0.03
     max_slope: float = math.radians(15.0)
     min_plane_cells: int = 100
+    min_seed_cells: int = 3
+    seed_tolerance: float = 0.01
     max_planes: int = 4
     fill_radius: float = 1.0
     min_coverage: float = 0.5
@@ -314,8 +322,12 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     planes: tuple[FloorPlane, ...] = ()
     dominant = ransac_plane(cand_points, params, rng) if params.detect else None
     if dominant is not None and dominant[2].sum() >= params.min_plane_cells:
+        normal, offset, inliers = dominant
         seeds = np.zeros((ny, nx), bool)
-        seeds[gy[dominant[2]], gx[dominant[2]]] = True
+        seeds[gy[inliers], gx[inliers]] = True
+        close = np.zeros((ny, nx), bool)
+        close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
+        seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
         is_floor = nk.grow_region(level, seeds, robot.step_height)
         fy, fx = np.nonzero(is_floor)
         planes = _planes_of(np.column_stack([xs[fx], ys[fy], cand[fy, fx]]), params, rng)

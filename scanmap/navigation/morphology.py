@@ -55,6 +55,15 @@ def component_boxes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return labels, stats[:, :4]
 
 
+def large_components(mask: np.ndarray, min_cells: int) -> np.ndarray:
+    """`mask` without its 8-connected components of fewer than `min_cells` cells."""
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(
+        np.ascontiguousarray(mask, dtype=np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    keep = stats[:, cv2.CC_STAT_AREA] >= min_cells
+    keep[0] = False
+    return keep[labels]
+
+
 def box_slices(box: np.ndarray) -> tuple[slice, slice]:
     """(rows, columns) slices of a `component_boxes` box (x, y, width, height)."""
     x, y, w, h = map(int, box)

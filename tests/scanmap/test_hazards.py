@@ -64,6 +64,21 @@ def test_no_drop_off_is_free_wherever_the_scene_lies_on_the_cells(dx, dy, yaw_de
     assert ramp_f1(step.seg, truth_classes(step.seg, raster), step.hits, scene) >= 0.95
 
 
+@pytest.mark.parametrize("depth", [0.06, 0.08])
+def test_a_step_down_just_over_the_step_height_is_never_free(depth):
+    # The loading dock only 6 cm down: the foot of its wall, hit within the floor plane's
+    # tolerance of the upper floor, must not seed the floor down there
+    built = builtin_scene("hazards")
+    scene = replace(built, floor_regions=tuple(
+        replace(r, height=-depth) if r.name == "loading dock" else r
+        for r in built.floor_regions))
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
+    for step in mapped(scene, SCANS):
+        measures = drop_measures(step.seg, truth_classes(step.seg, raster))
+        assert measures["drop_free"] == 0, f"scan {step.index}"
+    assert measures["drop_found"] > 0.95 * measures["drop_cells"]
+
+
 def test_ramps_within_max_slope_are_floor_and_steeper_ones_are_not(hazards):
     scene, steps = hazards
     step, truth = steps[-1]

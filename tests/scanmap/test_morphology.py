@@ -68,6 +68,15 @@ def test_components_match_ndimage(mask):
     assert ours == theirs
 
 
+@settings(max_examples=60, deadline=None)
+@given(mask=masks, min_cells=st.integers(1, 6))
+def test_large_components_match_ndimage(mask, min_cells):
+    expected, _ = ndimage.label(mask, SQUARE)
+    sizes = np.bincount(expected.ravel())
+    assert np.array_equal(morphology.large_components(mask, min_cells),
+                          mask & (sizes[expected] >= min_cells))
+
+
 def test_empty_and_full_masks():
     empty, full = np.zeros((5, 7), bool), np.ones((5, 7), bool)
     assert not morphology.dilate(empty, 3).any() and morphology.dilate(full).all()
