@@ -47,18 +47,23 @@ def min_filter(values: np.ndarray, size: int) -> np.ndarray:
                      np.ones((size, size), np.uint8), borderType=cv2.BORDER_REPLICATE)
 
 
+def _components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV's 8-connected labels (int32, 0 off the mask) and per-label statistics."""
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(
+        np.ascontiguousarray(mask, dtype=np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    return labels, stats
+
+
 def component_boxes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """8-connected components of `mask`: labels (int32, 0 off the mask, 1..count) and
     each label's bounding box as a row (x, y, width, height) (row 0: the background)."""
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(
-        np.ascontiguousarray(mask, dtype=np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    labels, stats = _components(mask)
     return labels, stats[:, :4]
 
 
 def large_components(mask: np.ndarray, min_cells: int) -> np.ndarray:
     """`mask` without its 8-connected components of fewer than `min_cells` cells."""
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(
-        np.ascontiguousarray(mask, dtype=np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    labels, stats = _components(mask)
     keep = stats[:, cv2.CC_STAT_AREA] >= min_cells
     keep[0] = False
     return keep[labels]
