@@ -3,6 +3,8 @@ cleared from the map within three scans, and no wall cell ever erodes."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from benchmarks.bench_hazards import people_run
@@ -31,3 +33,18 @@ def test_walls_never_erode_and_keep_their_recall(measures):
 def test_a_person_who_left_is_gone_within_three_scans(measures):
     assert measures["left_cells"] > 50  # the cells checked
     assert measures["ghost_cells"] == 0
+
+
+@pytest.mark.xfail(strict=True, reason="known gap (issue 17): rays that clip the free corner "
+                   "of a cell whose centre a face cuts clear the face's level (16 wall "
+                   "cell-scans eroded, 3 of them to FREE)")
+def test_walls_never_erode_where_the_scene_lies_at_a_slant_to_the_cells():
+    """The people scene turned by -33 deg and shifted within a cell: faces cut cells off
+    their centres. Letting only rays within 1.75 cm of a cell's centre or of its level's
+    mean hit clear the level fixed this (0 eroded) but left a person's rim cells standing
+    when later rays only clipped them (a box the robot had seen for six scans kept 2
+    cells for more than 11 scans after it left; ghost cell-scans of the people run 1879 ->
+    2334), so it was not kept."""
+    scene = builtin_scene("people").moved(0.02, 0.01, math.radians(-33.0))
+    measured = people_run(scene=scene)
+    assert measured["wall_cells_eroded"] == 0
