@@ -55,12 +55,15 @@ class Limits:
     stop: float = 0.3
 
 
+HALTING = (QueryStatus.STALE, QueryStatus.FAULTED, QueryStatus.INVALID)  # answers that stop
+
+
 def speed_command(nearest: Nearest, ahead: Travel, radius: float, limits: Limits
                   ) -> tuple[float, str]:
     """Forward speed (m/s) for a `nearest` answer and the free `ahead` travel of a robot
     of `radius` (m), and why."""
     for answer in (nearest, ahead):
-        if answer.status in (QueryStatus.STALE, QueryStatus.FAULTED, QueryStatus.INVALID):
+        if answer.status in HALTING:
             return 0.0, answer.status.name.lower()
         if not np.isfinite(answer.age):
             return 0.0, "no data"
@@ -114,11 +117,15 @@ def control_loop(mapper: Mapper, mapping, limits: Limits, linger: float) -> dict
         if nearest.status == QueryStatus.UNKNOWN and np.isfinite(nearest.age):
             unknown_clearance.append(nearest.clearance)  # unknown nearer than obstacles
         if reason != last_reason:
+            # The answer that stopped the robot, if one did: the data can go stale between
+            # the two queries, and `nearest` then still reads as fresh.
+            status = next((a.status for a in (nearest, ahead) if a.status in HALTING),
+                          nearest.status)
             transitions.append({"t": time.monotonic() - start, "reason": reason,
-                                "speed": speed, "status": nearest.status.name,
+                                "speed": speed, "status": status.name,
                                 "distance": nearest.distance, "age": nearest.age})
             print(f"  t={transitions[-1]['t']:5.2f} s  {reason:15s} speed {speed:.2f} m/s  "
-                  f"nearest {nearest.distance:.2f} m, {nearest.status.name}")
+                  f"nearest {nearest.distance:.2f} m, {status.name}")
             last_reason = reason
         if ended_at is None and not mapping.running:
             ended_at = time.monotonic()
