@@ -16,7 +16,9 @@ Insertion is one scan at a time, in three passes:
    alone; a ray through the bin of a thin level (a person's arm seen once, a few mm
    thick) passes it, as a voxel map counts it, even where it misses its exact height.
    A level hit in this scan elsewhere and crossed inside is split around the ray
-   instead (see _pass_cell). Guards
+   instead (see _pass_cell). A level hit in `static_scans` scans or more (a wall,
+   furniture) is passed only by rays within `pass_radius` of its mean hit: where a face
+   cuts a cell, rays through the cell's free part would otherwise wear it away. Guards
    against eroding surfaces at grazing incidence: the last `clear_margin` metres
    before the hit clear nothing; a level hit in this scan within `protect` metres of
    the ray's heights is not cleared ("occupied wins", as in OctoMap, but per height, so
@@ -39,7 +41,7 @@ s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, bundle
 bundle mask)`, where bit b of a mask covers z_min + [b, b+1) * mask_dz; `nlev[off]`
 levels in use; level k of the cell is record `off * K + k` of lev_f (lo, hi, log-odds,
 mean hit x, y offset from the cell centre, this scan's hit range), lev_n (hits, passes,
-scan stamp) and lev_flag.
+scan stamp, scans that hit it) and lev_flag.
 """
 
 from __future__ import annotations
@@ -51,9 +53,9 @@ from numba import njit
 # SLO, SHI: height range of the hits in scan `stamp` (valid while HIT_FLAG is set).
 LO, HI, LOGODDS, MX, MY, SLO, SHI = range(7)
 N_FLOAT_FIELDS = 7
-# Fields of the integer level record lev_n[li, :].
-HITS, PASSES, STAMP = 0, 1, 2
-N_INT_FIELDS = 3
+# Fields of the integer level record lev_n[li, :]; SCANS counts the scans that hit it.
+HITS, PASSES, STAMP, SCANS = 0, 1, 2, 3
+N_INT_FIELDS = 4
 HIT_FLAG = 0x80  # lev_flag bit: hit in scan `stamp`; the low bits count its misses
 # Fields of cells[off]: observed-height mask, last scan id, and the ray-bundle scratch.
 SEEN, SCAN, VKEY, VMASK = range(4)
@@ -64,9 +66,9 @@ POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO
 
 # Indices into the float parameter vector `fp` of the insertion kernel.
 (FP_RES, FP_X0, FP_Y0, FP_ZMIN, FP_MASK_DZ, FP_GAP, FP_MARGIN, FP_LHIT, FP_LMISS, FP_LMAX,
- FP_PROTECT) = range(11)
+ FP_PROTECT, FP_PASS_RADIUS) = range(12)
 # Indices into the integer parameter vector `ip`.
-IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN = range(6)
+IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN, IP_STATIC = range(7)
 
 _U32_MAX = np.uint32(0xFFFFFFFF)
 _MEAN_WINDOW = 1024.0  # hit-centroid running mean forgets beyond this many hits
@@ -220,6 +222,7 @@ def _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels) -> None:
     lev_n[ia, HITS] = np.uint32(min(ha + hb, 4294967295.0))
     lev_n[ia, PASSES] = np.uint32(min(float(lev_n[ia, PASSES]) + float(lev_n[ib, PASSES]),
                                       4294967295.0))
+    lev_n[ia, SCANS] = max(lev_n[ia, SCANS], lev_n[ib, SCANS])
     if lev_n[ib, STAMP] > lev_n[ia, STAMP]:
         lev_n[ia, STAMP] = lev_n[ib, STAMP]
         lev_flag[ia] = lev_flag[ib]
@@ -266,6 +269,7 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
         lev_n[li, HITS] = 0
         lev_n[li, PASSES] = 0
         lev_n[li, STAMP] = scan
+        lev_n[li, SCANS] = 0
         lev_flag[li] = 0
     elif k < 0:  # all K slots taken: the nearest level absorbs the hit (fills the gap)
         best = np.inf
@@ -286,6 +290,7 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
     _touch(lev_n, lev_flag, li, scan)
     if not lev_flag[li] & HIT_FLAG:
         lev_flag[li] |= HIT_FLAG
+        lev_n[li, SCANS] = min(lev_n[li, SCANS] + np.uint32(1), _U32_MAX)
         lev_f[li, LOGODDS] = min(lev_f[li, LOGODDS] + fp[FP_LHIT], fp[FP_LMAX])
         lev_f[li, SLO] = z
         lev_f[li, SHI] = z
@@ -394,16 +399,38 @@ def _split(lev_f, lev_n, lev_flag, nlev, off, k, za, zb, levels) -> None:
     nlev[off] += 1
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _segment_distance(px: float, py: float, path: np.ndarray) -> float:
+    """Distance from point (px, py) to the x-y segment path[0:2] -> path[2:4]."""
+    dx, dy = path[2] - path[0], path[3] - path[1]
+    length2 = dx * dx + dy * dy
+    t = 0.0 if length2 <= 0.0 else min(max(((px - path[0]) * dx + (py - path[1]) * dy)
+                                           / length2, 0.0), 1.0)
+    ex, ey = path[0] + t * dx - px, path[1] + t * dy - py
+    return np.sqrt(ex * ex + ey * ey)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _beside_static(lev_f, lev_n, li, path, fp, static_scans) -> bool:
+    """A level hit in `static_scans` scans or more (a wall, furniture) and a ray that
+    crossed its cell only beside it: farther than `pass_radius` from the level's mean hit.
+    Where a face cuts a cell, rays through the cell's free part must not clear the face;
+    a level seen briefly (a person) clears from any pass."""
+    return np.int64(lev_n[li, SCANS]) >= static_scans \
+        and _segment_distance(lev_f[li, MX], lev_f[li, MY], path) > fp[FP_PASS_RADIUS]
+
+
 @njit(cache=True, nogil=True)
-def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, fp, levels, max_miss,
-               scan) -> int:
+def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels, max_miss,
+               static_scans, scan) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
     A level not hit in this scan takes a miss. A level hit in this scan, but not within
     `protect` of these heights, and crossed strictly inside, wrongly spans free space (a
     floor merged with a table top before the gap was seen; the floor where a person
     stood): it is split around the span, and the part without this scan's hits takes the
-    miss, or is cut off when thinner than two height bins. Returns the levels removed.
+    miss, or is cut off when thinner than two height bins. `path` is the ray's x-y segment
+    in the cell, relative to its centre (see _beside_static). Returns the levels removed.
     """
     cleared = 0
     base = off * levels
@@ -415,9 +442,12 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, fp, levels, max_
         lo, hi = lev_f[li, LO], lev_f[li, HI]
         if not _crosses(lo, hi, za, zb, bits, fp[FP_ZMIN], fp[FP_MASK_DZ]):
             continue
-        lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
         _touch(lev_n, lev_flag, li, scan)
-        if not lev_flag[li] & HIT_FLAG:
+        hit_now = lev_flag[li] & HIT_FLAG
+        if not hit_now and _beside_static(lev_f, lev_n, li, path, fp, static_scans):
+            continue
+        lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
+        if not hit_now:
             cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
             continue
         if zb >= lev_f[li, SLO] - protect and za <= lev_f[li, SHI] + protect:
@@ -449,7 +479,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
     shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
-    bundle_run = ip[IP_RUN]
+    bundle_run, static_scans = ip[IP_RUN], ip[IP_STATIC]
     mask = (1 << shift) - 1
     scan = np.uint32(ip[IP_SCAN])
     scan64 = np.uint64(ip[IP_SCAN])
@@ -473,6 +503,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
         cells[off, SCAN] = scan64
         n_hits += 1
     n_cleared = 0
+    path = np.empty(4, np.float64)  # a ray's x-y segment in a cell, from the cell's centre
     key = np.uint64(ip[IP_KEY])
     group = (-1, -1, -1)
     for i in range(points.shape[0]):  # pass 2: rays, traced from the hit back to the origin
@@ -484,8 +515,8 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
             group = origin_cell
             key += np.uint64(1)
         pz = points[i, 2]
-        dzr = oz - pz
-        length = np.sqrt((points[i, 0] - ox) ** 2 + (points[i, 1] - oy) ** 2 + dzr * dzr)
+        dxr, dyr, dzr = ox - points[i, 0], oy - points[i, 1], oz - pz
+        length = np.sqrt(dxr * dxr + dyr * dyr + dzr * dzr)
         t_margin = fp[FP_MARGIN] / length if length > 0.0 else 2.0
         ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(
             (points[i, 0] - x0) / res, (points[i, 1] - y0) / res, (ox - x0) / res,
@@ -516,13 +547,20 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                     cells[off, SEEN] |= bits
                     cells[off, SCAN] = scan64
                     if nlev[off] > 0 and t_out > t_margin:
-                        za = pz + dzr * max(t_in, t_margin)
+                        t_clear = max(t_in, t_margin)
+                        za = pz + dzr * t_clear
                         za, zb = min(za, zb), max(za, zb)
                         clear = height_mask(za, zb, z_min, mdz)
                         if _crosses_any(lev_f, nlev[off], off * levels, za, zb, clear, z_min,
                                         mdz):
+                            cx, cy = x0 + (ix + 0.5) * res, y0 + (iy + 0.5) * res
+                            path[0] = points[i, 0] + dxr * t_clear - cx
+                            path[1] = points[i, 1] + dyr * t_clear - cy
+                            path[2] = points[i, 0] + dxr * t_out - cx
+                            path[3] = points[i, 1] + dyr * t_out - cy
                             n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb,
-                                                    clear, fp, levels, max_miss, scan)
+                                                    clear, path, fp, levels, max_miss,
+                                                    static_scans, scan)
             if tmx < tmy:
                 ix += sx
                 t_in = tmx

@@ -43,6 +43,11 @@ class GridConfig:
     clear_margin: the last metres of a ray before its hit clear nothing.
     protect: a level hit in a scan keeps, in that scan, the space within this height of
     its hits from being cleared (m).
+    static_scans, pass_radius: a level hit in at least `static_scans` scans (about 20 s
+    at the scanner's 2 s a turn: a wall, furniture) is cleared only by rays that pass
+    within `pass_radius` (m, x-y) of the level's mean hit. Where a face cuts a cell, rays
+    through the cell's free part would otherwise clear the face; a level seen briefly (a
+    person passing) clears from any pass through its cell.
     max_range: rays longer than this are dropped (m).
     l_hit, l_miss, l_max: log-odds added per hit and removed per pass (once per scan and
     at most `max_misses` times per scan, respectively), and the clamp.
@@ -60,6 +65,8 @@ class GridConfig:
     merge_gap: float = 0.10
     clear_margin: float = 0.1
     protect: float = 0.05
+    pass_radius: float = 0.0175
+    static_scans: int = 10
     max_range: float = 20.0
     l_hit: float = 0.85
     l_miss: float = 0.4
@@ -74,7 +81,7 @@ class GridConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise MapError(f"GridConfig.{name}: expected a finite number > 0, got {value!r}")
-        for name in ("clear_margin", "protect"):
+        for name in ("clear_margin", "protect", "pass_radius"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise MapError(f"GridConfig.{name}: expected a finite number >= 0, got {value!r}")
@@ -88,6 +95,9 @@ class GridConfig:
         if not (isinstance(self.bundle_run, int) and self.bundle_run >= 0):
             raise MapError(f"GridConfig.bundle_run: expected an integer >= 0, "
                            f"got {self.bundle_run!r}")
+        if not (isinstance(self.static_scans, int) and self.static_scans >= 1):
+            raise MapError(f"GridConfig.static_scans: expected an integer >= 1, "
+                           f"got {self.static_scans!r}")
         if not (isinstance(self.max_misses, int) and 1 <= self.max_misses <= 127):
             raise MapError(f"GridConfig.max_misses: expected 1..127, got {self.max_misses!r}")
         if self.window is not None and not (math.isfinite(self.window)
@@ -211,7 +221,8 @@ class HeightGrid:
         self._cells = np.zeros((0, cells, gk.N_CELL_FIELDS), np.uint64)
         self._ray_key = 0  # last ray-bundle key used
         self._fp = np.array([c.resolution, c.corner, c.corner, c.z_min, c.mask_dz, c.merge_gap,
-                             c.clear_margin, c.l_hit, c.l_miss, c.l_max, c.protect], np.float64)
+                             c.clear_margin, c.l_hit, c.l_miss, c.l_max, c.protect,
+                             c.pass_radius], np.float64)
         self._shift = c.tile_cells.bit_length() - 1
 
     # -- tiles -------------------------------------------------------------------------
@@ -380,7 +391,7 @@ class HeightGrid:
                     break
             self._scan_times.append(float(stamp))
             ip = np.array([self._shift, c.levels, c.max_misses, len(self._scan_times) - 1,
-                           self._ray_key, c.bundle_run], np.int64)
+                           self._ray_key, c.bundle_run, c.static_scans], np.int64)
             hits, cleared, self._ray_key = gk.insert_scan(points, origins, cls,
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)

@@ -29,7 +29,7 @@ from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap_driver.errors import MapError
 from scanmap_driver.files import atomic_path, exact_array, load_npz, save_npz
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: the level record counts the scans that hit it (lev_n[..., SCANS])
 UNKNOWN_SHADE, FREE_SHADE, OCCUPIED_SHADE = 205, 254, 0
 # The thresholds written to the YAML for readers: 254 (occ 0.0039) < 0.196 < 205 (0.19608)
 # <= 0.65 < 0 (1.0), with the strict and the inclusive comparisons alike.
@@ -229,6 +229,16 @@ class SavedMap:
     origin: tuple[float, float]
 
 
+def _from_version_1(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A version-1 map read as version 2: its levels count no scans yet, so they clear as
+    a briefly seen level does until later scans hit them (GridConfig.static_scans)."""
+    lev_n = np.asarray(arrays["lev_n"])
+    if lev_n.ndim == 0:
+        return arrays
+    scans = np.zeros(lev_n.shape[:-1] + (1,), lev_n.dtype)
+    return {**arrays, "lev_n": np.concatenate([lev_n, scans], axis=-1)}
+
+
 def load_map(path: str | os.PathLike[str]) -> SavedMap:
     """Read a full map .npz; a corrupt, truncated or inconsistent file raises MapError."""
     required = ("format_version", "config", "resolution", "origin", "tile_coords",
@@ -239,8 +249,10 @@ def load_map(path: str | os.PathLike[str]) -> SavedMap:
             raise MapError(f"{path}: {key} must be a real number, got "
                            f"{arrays[key].dtype} of shape {arrays[key].shape}")
     version = arrays["format_version"]
-    if version.shape != () or int(version) != FORMAT_VERSION:
-        raise MapError(f"{path}: format_version {version} is not {FORMAT_VERSION}")
+    if version == 1:
+        arrays = _from_version_1(arrays)
+    elif version != FORMAT_VERSION:
+        raise MapError(f"{path}: format_version {version} is not 1 or {FORMAT_VERSION}")
     try:
         config = GridConfig(**json.loads(str(arrays["config"])))
     except (json.JSONDecodeError, TypeError) as exc:

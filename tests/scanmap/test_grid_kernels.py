@@ -215,6 +215,39 @@ def test_a_ray_through_the_height_bin_of_a_thin_level_clears_it():
     assert level_at(grid)[0, gk.LOGODDS] == pytest.approx(full - miss)
 
 
+def face_grid(scans: int) -> HeightGrid:
+    """A box's corner in the cell [2.0, 2.05] x [0, 0.05]: its face x = 2.033 (8 mm past the
+    centre) from y = 0 to 0.01, 0.6-0.9 m high, hit in `scans` scans."""
+    grid = HeightGrid(CONFIG)
+    face = np.array([[2.033, y, z] for y in np.arange(0.0, 0.011, 0.0025)
+                     for z in np.arange(0.6, 0.9, 0.02)])
+    for stamp in range(scans):
+        grid.insert(face, face + [0.0, 0.0, 0.01], float(stamp))  # vertical, no clearing
+    return grid
+
+
+def passes(grid: HeightGrid, y: float, scans: int) -> None:
+    """One ray a scan at height 0.76 along x at `y`, through the face's cell to 4 m."""
+    for k in range(scans):
+        grid.insert(np.array([[4.0, y, 0.76]]), np.array([0.0, y, 0.76]), 100.0 + k)
+
+
+@pytest.mark.parametrize(("seen", "y", "kept"), [
+    (CONFIG.static_scans, 0.047, True),  # a wall: rays beside the face leave it
+    (CONFIG.static_scans, 0.025, True),  # even through the cell's middle
+    (CONFIG.static_scans, 0.005, False),  # a wall removed: rays where it was clear it
+    (3, 0.047, False),  # a person: any ray through the cell clears it
+])
+def test_rays_beside_a_long_seen_face_leave_it(seen, y, kept):
+    """Issue 17: where a face cuts a cell, rays through the cell's free part (here 2.0 cm
+    or more from the face's mean hit) must not erode a wall or furniture;
+    they still clear what was seen only briefly."""
+    grid = face_grid(seen)
+    assert len(level_at(grid, 2.025, 0.025)) == 1
+    passes(grid, y, 20)
+    assert (len(level_at(grid, 2.025, 0.025)) == 1) == kept
+
+
 def test_misses_per_scan_are_capped():
     grid, full = one_level_grid(0.72, 0.76)
     many = np.array([[4.0, 0.025 + dy, 0.74] for dy in np.linspace(-0.02, 0.02, 10)])

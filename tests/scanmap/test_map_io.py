@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.io.map_files import load_map, load_ros_map, read_pgm, save_map, save_ros_map
 from scanmap_driver.errors import MapError
@@ -103,6 +104,26 @@ def test_full_map_round_trip_keeps_every_layer(tmp_path, mapped_grid):
     assert saved.grid.stamp == mapped_grid.stamp
     more = np.array([[1.0, 1.0, 0.3]])  # and mapping goes on in the loaded grid
     assert saved.grid.insert(more, np.zeros(3) + [0, 0, 1.0], 99.0).inserted == 1
+
+
+def test_a_version_1_map_loads_with_no_scans_counted(tmp_path, mapped_grid):
+    """Maps written before the level record counted its scans still load; their levels
+    count none, every other layer is as saved."""
+    path = tmp_path / "map.npz"
+    save_map(path, mapped_grid)
+    arrays = dict(np.load(path, allow_pickle=False))
+    scans = arrays["lev_n"][..., gk.SCANS]
+    assert scans.max() >= 1  # the mapped grid counted scans
+    arrays["format_version"] = np.array(1)
+    arrays["lev_n"] = np.delete(arrays["lev_n"], gk.SCANS, axis=-1)
+    np.savez(tmp_path / "v1.npz", **arrays)
+    old = load_map(tmp_path / "v1.npz").grid.state()
+    new = mapped_grid.state()
+    assert (old["lev_n"][..., gk.SCANS] == 0).all()
+    np.testing.assert_array_equal(np.delete(old["lev_n"], gk.SCANS, axis=-1),
+                                  np.delete(new["lev_n"], gk.SCANS, axis=-1))
+    for name in ("lev_f", "nlev", "cells", "tile_coords"):
+        np.testing.assert_array_equal(old[name], new[name])
 
 
 def test_corrupt_or_truncated_full_map_is_a_clear_error(tmp_path, mapped_grid):
