@@ -399,15 +399,14 @@ def _split(lev_f, lev_n, lev_flag, nlev, off, k, za, zb, levels) -> None:
     nlev[off] += 1
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _segment_distance(px: float, py: float, path: np.ndarray) -> float:
-    """Distance from point (px, py) to the x-y segment path[0:2] -> path[2:4]."""
-    dx, dy = path[2] - path[0], path[3] - path[1]
-    length2 = dx * dx + dy * dy
-    t = 0.0 if length2 <= 0.0 else min(max(((px - path[0]) * dx + (py - path[1]) * dy)
-                                           / length2, 0.0), 1.0)
-    ex, ey = path[0] + t * dx - px, path[1] + t * dy - py
-    return np.sqrt(ex * ex + ey * ey)
+@njit(cache=True, nogil=True)
+def segment_distance(px: float, py: float, ax: float, ay: float, bx: float,
+                     by: float) -> float:
+    """Distance from point (px, py) to the segment (ax, ay)-(bx, by)."""
+    ex, ey = bx - ax, by - ay
+    length2 = ex * ex + ey * ey
+    t = 0.0 if length2 == 0.0 else min(max(((px - ax) * ex + (py - ay) * ey) / length2, 0.0), 1.0)
+    return np.hypot(px - ax - t * ex, py - ay - t * ey)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -417,7 +416,8 @@ def _beside_static(lev_f, lev_n, li, path, fp, static_scans) -> bool:
     Where a face cuts a cell, rays through the cell's free part must not clear the face;
     a level seen briefly (a person) clears from any pass."""
     return np.int64(lev_n[li, SCANS]) >= static_scans \
-        and _segment_distance(lev_f[li, MX], lev_f[li, MY], path) > fp[FP_PASS_RADIUS]
+        and segment_distance(lev_f[li, MX], lev_f[li, MY], path[0], path[1], path[2],
+                             path[3]) > fp[FP_PASS_RADIUS]
 
 
 @njit(cache=True, nogil=True)

@@ -857,14 +857,6 @@ def _spread_cell(x, y, qx, qy, yaw, max_range, state, boxes, geo, ranges, kinds)
             kinds[bb] = state[y, x]
 
 
-@njit(cache=True, nogil=True)
-def _segment_distance(px, py, ax, ay, bx, by):
-    ex, ey = bx - ax, by - ay
-    length2 = ex * ex + ey * ey
-    t = 0.0 if length2 == 0.0 else min(max(((px - ax) * ex + (py - ay) * ey) / length2, 0.0), 1.0)
-    return math.hypot(px - ax - t * ex, py - ay - t * ey)
-
-
 _SQUARE_X, _SQUARE_Y = (0.0, 1.0, 1.0, 0.0), (0.0, 0.0, 1.0, 1.0)  # corners, in cells
 
 
@@ -971,7 +963,7 @@ def polygon_margin(polygon, radius, state, points, geo):
             for i in range(k):
                 ax, ay = polygon[i, 0], polygon[i, 1]
                 bx, by = polygon[(i + 1) % k, 0], polygon[(i + 1) % k, 1]
-                d = min(d, _segment_distance(px, py, ax, ay, bx, by))
+                d = min(d, gk.segment_distance(px, py, ax, ay, bx, by))
                 if (ay > py) != (by > py) and px < ax + (py - ay) * (bx - ax) / (by - ay):
                     inside = not inside
             d = -d - reach if inside else d - reach
