@@ -61,7 +61,7 @@ def test_dead_band_holds_the_head_still():
 def test_a_scan_turns_once_in_about_two_seconds_and_comes_back(seed):
     params = MotorModelConfig()
     motion = scan_motion(params, np.random.default_rng(seed), start_heading=0.3)
-    assert 1.8 < motion.capture_end < 2.4
+    assert 1.8 < motion.capture_end < 2.4  # the paper's ~2 s turn; a wrong model leaves it
     assert motion.heading_at(motion.capture_end) >= 0.3 + 2 * math.pi + math.radians(10)
     assert abs(motion.end_heading - 0.3) < math.radians(3)  # back near, not exactly at, the start
     # slow start: the first 0.1 s covers a few degrees, steady speed is ~ 180 deg/s
