@@ -43,8 +43,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import ndimage
 
+from scanmap.evaluation.ground_truth import drop_off_errors
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
 from scanmap.navigation.floor import (
@@ -128,21 +128,19 @@ def traversable(seg: Segmentation) -> np.ndarray:
     return seg.is_floor & (seg.state == FREE)
 
 
-def drop_measures(seg: Segmentation, truth: np.ndarray) -> dict[str, float]:
-    """Drop-off cells reported free (strict and more than a cell inside) and the edge error."""
-    true_drop = truth == TRUE_DROP_OFF
-    inner = ndimage.binary_erosion(true_drop, np.ones((3, 3), bool), border_value=1)
-    free = (seg.state == FREE) | traversable(seg)
-    edge = (seg.state == DROP_OFF) & ndimage.binary_dilation(seg.state == FREE,
-                                                             np.ones((3, 3), bool))
-    distance = ndimage.distance_transform_edt(~true_drop)
-    return {"drop_free_strict": int((free & true_drop).sum()),
-            "drop_free": int((free & inner).sum()),
-            "edge_cells": int(edge.sum()),
-            "edge_error_cells": float(distance[edge].max()) if edge.any() else 0.0,
-            "edge_within_one": float((distance[edge] <= 1.0).mean()) if edge.any() else 1.0,
-            "drop_found": int(((seg.state == DROP_OFF) & true_drop).sum()),
-            "drop_cells": int(true_drop.sum())}
+def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
+                  ) -> dict[str, float]:
+    """Drop-off cells reported free (strict and more than a cell inside) and the edge
+    error (`evaluation.drop_off_errors`, the map at the true poses: `truth` is the
+    raster's class at each of `seg`'s cells)."""
+    errors = drop_off_errors(seg, raster, np.eye(4), truth)
+    return {"drop_free_strict": errors["free_cells_on_drop_offs"],
+            "drop_free": errors["free_cells_inside_drop_offs"],
+            "edge_cells": errors["drop_off_edge_cells"],
+            "edge_error_cells": errors["drop_off_edge_error_cells"],
+            "edge_within_one": errors["drop_off_edge_within_one"],
+            "drop_found": int(((seg.state == DROP_OFF) & (truth == TRUE_DROP_OFF)).sum()),
+            "drop_cells": int((truth == TRUE_DROP_OFF).sum())}
 
 
 def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene) -> float:
@@ -172,7 +170,7 @@ def hazard_run(scans: int | None = None, seed: int = 0,
     worst, edge_worst, within_worst = 0, 0.0, 1.0
     for step in mapped(scene, scans, seed):
         truth = truth_classes(step.seg, raster)
-        measures = drop_measures(step.seg, truth)
+        measures = drop_measures(step.seg, truth, raster)
         worst = max(worst, measures["drop_free"])
         edge_worst = max(edge_worst, measures["edge_error_cells"])
         within_worst = min(within_worst, measures["edge_within_one"])

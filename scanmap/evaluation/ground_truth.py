@@ -12,6 +12,14 @@
   with a map obstacle within one cell, among those the map observed (an obstacle or
   free there: unknown is no claim); coverage: the same over all true obstacle cells;
   free precision: the map's free cells that are truly floor (the safety figure).
+* drop-offs (where the raster has any: a stairwell, a step down, a hole): the map's free
+  cells on a true drop-off, and those more than a cell inside it (goal 0: a cell across
+  the edge holds floor hits on its rim half, and the edge is placed within one cell);
+  recall: true drop-off cells with a map DROP_OFF within one cell, among those the map
+  observed (anything but unknown); the edge error: from each map DROP_OFF cell beside a
+  FREE one (8 neighbours: the edge a robot drives up to) to the nearest true drop-off
+  cell, in map cells, its largest value and the share within one cell (issue 17: the
+  edge within one cell of the truth).
 """
 
 from __future__ import annotations
@@ -20,10 +28,17 @@ import numpy as np
 
 from scanmap.evaluation.trajectory_errors import ate_rmse
 from scanmap.navigation import floor, morphology
+from scanmap.navigation.distance_field import distance_transform
 from scanmap.navigation.floor import Segmentation
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel
-from scanmap_driver.sim import RASTER_FLOOR, RASTER_OBSTACLE, ScanTruth, TruthRaster
+from scanmap_driver.sim import (
+    RASTER_DROP_OFF,
+    RASTER_FLOOR,
+    RASTER_OBSTACLE,
+    ScanTruth,
+    TruthRaster,
+)
 from scanmap_driver.transforms import invert_pose, transform_points, wrap_angle
 from scanmap_driver.triangulation import project_head_points
 
@@ -97,7 +112,8 @@ def map_to_world(poses: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray
                ) -> dict[str, float]:
-    """Obstacle precision, recall, F1, coverage and free precision (module docstring)."""
+    """Obstacle precision, recall, F1, coverage and free precision, and the drop-off
+    measures where the raster has drop-offs (module docstring)."""
     ny, nx = seg.shape
     xs, ys = (seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution,
               seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution)
@@ -113,14 +129,7 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
     free = seg.state == floor.FREE
     precision = float(near_truth_at[predicted].mean()) if predicted.any() else float("nan")
 
-    rows, cols = np.nonzero(raster.classes == RASTER_OBSTACLE)
-    true_cells = np.column_stack([raster.origin[0] + (cols + 0.5) * raster.resolution,
-                                  raster.origin[1] + (rows + 0.5) * raster.resolution,
-                                  np.zeros(rows.size)])
-    in_map = transform_points(invert_pose(world_from_map), true_cells)
-    near_map = morphology.dilate(predicted)
-    detected = _lookup(near_map, seg.origin, seg.resolution, in_map, False)
-    observed = detected | _lookup(free, seg.origin, seg.resolution, in_map, False)
+    detected, observed = _found(raster, RASTER_OBSTACLE, predicted, free, seg, world_from_map)
     recall = float(detected[observed].mean()) if observed.any() else float("nan")
     f1 = 2 * precision * recall / (precision + recall) if precision + recall > 0 else 0.0
     return {"obstacle_precision": precision, "obstacle_recall": recall, "obstacle_f1": f1,
@@ -128,7 +137,51 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
             "free_precision": float((truth_class[free] == RASTER_FLOOR).mean()) if free.any()
             else float("nan"),
             "free_cells_on_obstacles": int((truth_class[free] == RASTER_OBSTACLE).sum()),
-            "band": list(raster.band)}
+            "band": list(raster.band)} | drop_off_errors(seg, raster, world_from_map,
+                                                          truth_class)
+
+
+def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray,
+                    truth_class: np.ndarray) -> dict[str, float]:
+    """The drop-off measures of the module docstring (empty where the raster has none);
+    truth_class: the raster's class at each map cell's centre."""
+    true_drop = raster.classes == RASTER_DROP_OFF
+    if not true_drop.any():
+        return {}
+    drop, free = seg.state == floor.DROP_OFF, seg.state == floor.FREE
+    detected, observed = _found(raster, RASTER_DROP_OFF, drop, seg.state != floor.UNKNOWN,
+                                seg, world_from_map)
+    edge = drop & morphology.dilate(free)
+    rows, cols = np.nonzero(edge)
+    centres = np.column_stack([seg.origin[0] + (cols + 0.5) * seg.resolution,
+                               seg.origin[1] + (rows + 0.5) * seg.resolution,
+                               np.zeros(rows.size)])
+    distance = distance_transform(true_drop)[0] * (raster.resolution / seg.resolution)
+    edge_error = _lookup(distance, raster.origin, raster.resolution,
+                         transform_points(world_from_map, centres), np.inf)
+    on_drop = truth_class == RASTER_DROP_OFF
+    inside = morphology.min_filter(on_drop, 3) > 0  # more than a cell from the edge
+    return {"free_cells_on_drop_offs": int((free & on_drop).sum()),
+            "free_cells_inside_drop_offs": int((free & inside).sum()),
+            "drop_off_recall": float(detected[observed].mean()) if observed.any()
+            else float("nan"),
+            "drop_off_edge_cells": int(edge.sum()),
+            "drop_off_edge_error_cells": float(edge_error.max()) if edge.any() else 0.0,
+            "drop_off_edge_within_one": float((edge_error <= 1.0).mean()) if edge.any()
+            else 1.0}
+
+
+def _found(raster: TruthRaster, kind: int, claimed: np.ndarray, other: np.ndarray,
+           seg: Segmentation, world_from_map: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per true cell of `kind`: whether the map `claimed` it within one cell (detected),
+    and whether the map observed it (detected, or `other` there)."""
+    rows, cols = np.nonzero(raster.classes == kind)
+    true_cells = np.column_stack([raster.origin[0] + (cols + 0.5) * raster.resolution,
+                                  raster.origin[1] + (rows + 0.5) * raster.resolution,
+                                  np.zeros(rows.size)])
+    in_map = transform_points(invert_pose(world_from_map), true_cells)
+    detected = _lookup(morphology.dilate(claimed), seg.origin, seg.resolution, in_map, False)
+    return detected, detected | _lookup(other, seg.origin, seg.resolution, in_map, False)
 
 
 def _lookup(values: np.ndarray, origin, resolution: float, points: np.ndarray,

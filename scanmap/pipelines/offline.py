@@ -171,6 +171,13 @@ def report_text(report: dict) -> str:
                      f"obstacle F1 {g['obstacle_f1']:.3f} (precision "
                      f"{g['obstacle_precision']:.3f}, recall {g['obstacle_recall']:.3f}), "
                      f"free precision {g['free_precision']:.3f}")
+        if "free_cells_on_drop_offs" in g:
+            lines.append(f"drop-offs: recall {g['drop_off_recall']:.3f}, "
+                         f"{g['free_cells_on_drop_offs']} free cells on them "
+                         f"({g['free_cells_inside_drop_offs']} more than a cell inside); "
+                         "edge within "
+                         f"{g['drop_off_edge_error_cells']:.2f} cells "
+                         f"({100 * g['drop_off_edge_within_one']:.0f} % within one)")
     return "\n".join(lines)
 
 

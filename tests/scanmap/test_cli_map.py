@@ -77,6 +77,20 @@ def test_a_folder_of_processed_scans_is_mapped_and_its_trajectory_scored(tmp_pat
     assert "3 scans mapped" in capsys.readouterr().out
 
 
+def test_a_scene_with_drop_offs_is_scored_on_them(tmp_path, capsys):
+    """The hazards scene's stairwell and dock: none of them free more than a cell inside,
+    nearly all found, the edge within about a cell (the report prints them)."""
+    scans = simulate_ideal(builtin_scene("hazards"), tmp_path / "scans", reference_scanner(),
+                           seed=1, scans=8)
+    out = tmp_path / "map"
+    assert main(["map", str(scans), "--out", str(out)]) == 0
+    errors = json.loads((out / "report.json").read_text())["errors"]["map"]
+    assert errors["free_cells_inside_drop_offs"] == 0
+    assert errors["drop_off_recall"] > 0.9 and errors["drop_off_edge_cells"] > 20
+    assert errors["drop_off_edge_error_cells"] <= 2.0 and errors["drop_off_edge_within_one"] > 0.9
+    assert "drop-offs: recall" in capsys.readouterr().out
+
+
 def test_input_that_is_not_a_recording_is_a_clear_error(tmp_path, capsys):
     assert main(["map", str(tmp_path / "nothing"), "--out", str(tmp_path / "out")]) == 1
     assert "nothing: neither a recording" in capsys.readouterr().err

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from scanmap.evaluation import ground_truth as evaluation
-from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
+from scanmap.navigation import morphology
+from scanmap.navigation.floor import DROP_OFF, FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
 from scanmap_driver.processing import recording_scans
 from scanmap_driver.recording import Recording
 from scanmap_driver.sim import builtin_scene, truth_raster
@@ -17,11 +18,13 @@ from scanmap_driver.sim.truth import ScanTruth, truth_path
 from scanmap_driver.transforms import se2_to_pose
 
 
-def segmentation_of(raster, origin=None) -> Segmentation:
-    """A perfect map: the raster's classes as states (outside -> unknown)."""
+def segmentation_of(raster, origin=None, drop_off=DROP_OFF) -> Segmentation:
+    """A perfect map: the raster's classes as states (outside -> unknown), drop-offs as
+    `drop_off`."""
     state = np.full(raster.classes.shape, UNKNOWN, np.uint8)
     state[raster.classes == truth.FLOOR] = FREE
     state[raster.classes == truth.OBSTACLE] = OBSTACLE
+    state[raster.classes == truth.DROP_OFF] = drop_off
     ny, nx = state.shape
     nan = np.full((ny, nx), np.nan, np.float32)
     return Segmentation(origin=tuple(raster.origin if origin is None else origin),
@@ -64,6 +67,46 @@ def test_a_map_three_cells_off_loses_precision_and_claims_free_on_obstacles(offi
                                    np.eye(4))
     assert errors["obstacle_precision"] < 0.8 and errors["obstacle_f1"] < 0.8
     assert errors["free_cells_on_obstacles"] > 50 and errors["free_precision"] < 0.99
+
+
+@pytest.fixture(scope="module")
+def hazards_raster():
+    return truth_raster(builtin_scene("hazards"))
+
+
+def test_a_perfect_map_finds_every_drop_off_and_places_its_edge_on_it(hazards_raster,
+                                                                     office_raster):
+    errors = evaluation.map_errors(segmentation_of(hazards_raster), hazards_raster, np.eye(4))
+    assert errors["free_cells_on_drop_offs"] == errors["free_cells_inside_drop_offs"] == 0
+    assert errors["drop_off_recall"] == 1.0
+    assert errors["drop_off_edge_cells"] > 100  # the stairwell's and the dock's rims
+    assert errors["drop_off_edge_error_cells"] == 0.0 and errors["drop_off_edge_within_one"] == 1
+    office = evaluation.map_errors(segmentation_of(office_raster), office_raster, np.eye(4))
+    assert "drop_off_recall" not in office  # no drop-off in the scene: nothing to report
+
+
+def test_drop_offs_called_free_are_counted_and_found_by_none(hazards_raster):
+    true_drop = hazards_raster.classes == truth.DROP_OFF
+    errors = evaluation.map_errors(segmentation_of(hazards_raster, drop_off=FREE),
+                                   hazards_raster, np.eye(4))
+    assert errors["free_cells_on_drop_offs"] == true_drop.sum()
+    inner = (morphology.min_filter(true_drop, 3) > 0).sum()  # more than a cell inside
+    assert 0 < errors["free_cells_inside_drop_offs"] == inner < true_drop.sum()
+    assert errors["drop_off_recall"] == 0.0 and errors["drop_off_edge_cells"] == 0
+
+
+def test_a_drop_off_reported_a_cell_wider_has_its_edge_a_cell_out(hazards_raster):
+    """Its edge cells lie one cell from the truth beside a straight rim, sqrt(2) cells at
+    the corners that stick out."""
+    seg = segmentation_of(hazards_raster)
+    wider = morphology.dilate(seg.state == DROP_OFF) & (seg.state == FREE)
+    state = seg.state.copy()
+    state[wider] = DROP_OFF
+    errors = evaluation.map_errors(dataclasses.replace(seg, state=state), hazards_raster,
+                                   np.eye(4))
+    assert errors["drop_off_edge_error_cells"] == pytest.approx(np.sqrt(2))
+    assert 0.8 < errors["drop_off_edge_within_one"] < 1.0
+    assert errors["drop_off_recall"] == 1.0 and errors["free_cells_on_drop_offs"] == 0
 
 
 def test_statistics_and_trajectory_errors_in_closed_form():

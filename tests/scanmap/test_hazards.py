@@ -30,13 +30,13 @@ def hazards():
     scene = builtin_scene("hazards")
     raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
     steps = [(step, truth_classes(step.seg, raster)) for step in mapped(scene, SCANS)]
-    return scene, steps
+    return scene, steps, raster
 
 
 def test_no_drop_off_is_free_and_its_edge_is_within_a_cell(hazards):
-    _, steps = hazards
+    _, steps, raster = hazards
     step, truth = steps[-1]
-    measures = drop_measures(step.seg, truth)
+    measures = drop_measures(step.seg, truth, raster)
     assert measures["drop_free"] == 0
     assert measures["edge_within_one"] >= 0.98
     assert measures["edge_error_cells"] <= math.sqrt(2.0)  # a cell, diagonals included
@@ -45,8 +45,9 @@ def test_no_drop_off_is_free_and_its_edge_is_within_a_cell(hazards):
 
 
 def test_no_drop_off_is_free_after_any_scan(hazards):
-    _, steps = hazards
-    assert all(drop_measures(step.seg, truth)["drop_free"] == 0 for step, truth in steps)
+    _, steps, raster = hazards
+    assert all(drop_measures(step.seg, truth, raster)["drop_free"] == 0
+               for step, truth in steps)
 
 
 @pytest.mark.parametrize("dx, dy, yaw_deg", [
@@ -58,7 +59,7 @@ def test_no_drop_off_is_free_wherever_the_scene_lies_on_the_cells(dx, dy, yaw_de
     scene = builtin_scene("hazards").moved(dx, dy, math.radians(yaw_deg))
     raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
     for step in mapped(scene, SCANS):
-        measures = drop_measures(step.seg, truth_classes(step.seg, raster))
+        measures = drop_measures(step.seg, truth_classes(step.seg, raster), raster)
         assert measures["drop_free"] == 0, f"scan {step.index}"
     assert measures["drop_found"] > 0.95 * measures["drop_cells"]
     assert ramp_f1(step.seg, truth_classes(step.seg, raster), step.hits, scene) >= 0.95
@@ -74,19 +75,19 @@ def test_a_step_down_just_over_the_step_height_is_never_free(depth):
         for r in built.floor_regions))
     raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
     for step in mapped(scene, SCANS):
-        measures = drop_measures(step.seg, truth_classes(step.seg, raster))
+        measures = drop_measures(step.seg, truth_classes(step.seg, raster), raster)
         assert measures["drop_free"] == 0, f"scan {step.index}"
     assert measures["drop_found"] > 0.95 * measures["drop_cells"]
 
 
 def test_ramps_within_max_slope_are_floor_and_steeper_ones_are_not(hazards):
-    scene, steps = hazards
+    scene, steps, _ = hazards
     step, truth = steps[-1]
     assert ramp_f1(step.seg, truth, step.hits, scene) >= 0.95
 
 
 def test_black_carpet_is_never_free_inside(hazards):
-    scene, steps = hazards
+    scene, steps, _ = hazards
     carpet = next(r for r in scene.floor_regions if r.name == "black carpet")
     seg = steps[-1][0].seg
     inner = inner_cells(seg, carpet)
@@ -95,7 +96,7 @@ def test_black_carpet_is_never_free_inside(hazards):
 
 
 def test_drop_offs_are_lethal_and_an_obstacle_to_every_query(hazards):
-    _, steps = hazards
+    _, steps, _ = hazards
     step, truth = steps[-1]
     seg = step.seg
     drop = seg.state == DROP_OFF
