@@ -139,9 +139,34 @@ def _json_int(digits: str) -> int:
 
 
 def save_npz(path: str | os.PathLike[str], **arrays: np.ndarray) -> None:
-    """Write arrays to a compressed .npz, atomically."""
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez_compressed(fh, **arrays)
+    """Write arrays to an .npz (what `np.load` reads), atomically: each array deflated
+    where that pays (`_deflates`), stored as it is where it does not (measured coordinates:
+    deflating a map's 1.4 MB of float32 points took 60-70 ms to save 10 %, while its
+    grid's 2.2 MB shrink to 5 % in 10 ms)."""
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED,
+                                                   compresslevel=_DEFLATE_LEVEL) as archive:
+        for name, value in arrays.items():
+            array = np.asanyarray(value)
+            member = name + ".npy"
+            if not _deflates(array):
+                member = zipfile.ZipInfo(member, date_time=(1980, 1, 1, 0, 0, 0))
+                member.compress_type = zipfile.ZIP_STORED
+            with archive.open(member, "w", force_zip64=True) as fh:
+                np.lib.format.write_array(fh, array, allow_pickle=False)
+
+
+_DEFLATE_LEVEL = 1  # zlib's fastest: a map grid's arrays deflate about as far as at 6
+_DEFLATE_SAMPLE = 1 << 16  # bytes of an array tried before deflating all of it
+_DEFLATE_GAIN = 0.8  # deflate when the sample shrinks below this share of its size
+
+
+def _deflates(array: np.ndarray) -> bool:
+    """Whether deflating `array` pays: its first `_DEFLATE_SAMPLE` bytes shrink below
+    `_DEFLATE_GAIN` of their size (small arrays always: it costs nothing)."""
+    if array.nbytes <= _DEFLATE_SAMPLE or array.dtype.hasobject:
+        return True
+    head = np.ascontiguousarray(array.reshape(-1)[:_DEFLATE_SAMPLE // array.itemsize])
+    return len(zlib.compress(head.tobytes(), _DEFLATE_LEVEL)) < _DEFLATE_GAIN * head.nbytes
 
 
 def load_npz(path: str | os.PathLike[str], error: type[ScanmapError],
