@@ -1,0 +1,67 @@
+"""The controller benchmark's measures (`bench_controller`): the swept path against the
+closed form of a disc moving along a segment, what no scan could see against hand-placed
+cells, and the map never knowing a path that no scan could have seen."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from benchmarks.bench_controller import (
+    SWEEP_STEP,
+    corridor_drive,
+    swept_cells,
+    unseeable,
+)
+
+RES = 0.05
+
+
+def segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from each point to the segment a-b."""
+    t = np.clip((points - a) @ (b - a) / max((b - a) @ (b - a), 1e-18), 0.0, 1.0)
+    return np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=1)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-3, 3), st.floats(-3, 3), st.floats(-math.pi, math.pi), st.floats(0, 1.0),
+       st.floats(0.05, 0.4))
+def test_the_swept_path_holds_the_cells_the_moving_disc_covers(x, y, yaw, reach, radius):
+    cells = swept_cells(x, y, yaw, reach, radius, RES)
+    a = np.array([x, y])
+    b = a + reach * np.array([math.cos(yaw), math.sin(yaw)])
+    # every cell of the path lies within the disc's reach of the segment (its square's
+    # corner at most half a diagonal from its centre) ...
+    assert (segment_distance(cells, a, b) < radius + RES / math.sqrt(2) + 1e-9).all()
+    # ... and every cell whose centre the disc passes over, with room for the sampling
+    grid = np.mgrid[math.floor((min(a[0], b[0]) - radius) / RES):
+                    math.ceil((max(a[0], b[0]) + radius) / RES) + 1,
+                    math.floor((min(a[1], b[1]) - radius) / RES):
+                    math.ceil((max(a[1], b[1]) + radius) / RES) + 1].reshape(2, -1).T
+    centres = (grid + 0.5) * RES
+    inside = centres[segment_distance(centres, a, b) < radius - SWEEP_STEP]
+    held = {tuple(c) for c in np.round(cells / RES - 0.5).astype(int)}
+    assert all(tuple(c) in held for c in np.round(inside / RES - 0.5).astype(int))
+
+
+def test_a_cell_is_unseeable_only_outside_every_floor_annulus_and_footprint():
+    positions = np.array([[0.0, 0.0], [10.0, 0.0]])
+    cells = np.array([[1.0, 0.0],  # within the first pose's blind disc: unseeable
+                      [2.0, 0.0],  # in the first pose's annulus
+                      [0.1, 0.0],  # under the robot
+                      [5.0, 0.0],  # beyond the first's annulus, nearer than the second's
+                      [7.0, 0.0]])  # in the second pose's annulus
+    assert unseeable(cells, positions, (1.5, 4.0), 0.25, RES) == 2
+    assert unseeable(cells[[1, 2, 4]], positions, (1.5, 4.0), 0.25, RES) == 0
+
+
+def test_the_map_never_knows_a_path_no_scan_could_have_seen():
+    drive = corridor_drive(6)
+    assert 1.4 < drive["floor_annulus_m"][0] < 1.6  # camera 1 m up, tilted 18 deg down
+    assert drive["unseeable_ahead_scans"][:1] == [0]  # the start: nothing seen nearer
+    assert set(drive["unseeable_ahead_scans"]) <= set(drive["unknown_ahead_scans"])
+    assert drive["unknown_ahead_share"] >= drive["unseeable_ahead_share"] > 0
+    assert all(0.0 <= t <= 1.0 for t in drive["travel_m"])
