@@ -13,9 +13,12 @@ from hypothesis import strategies as st
 from benchmarks.bench_controller import (
     SWEEP_STEP,
     corridor_drive,
+    floor_annulus,
     swept_cells,
     unseeable,
 )
+from scanmap_driver.sim.ideal import ideal_scans
+from scanmap_driver.sim.scene import builtin_scene
 
 RES = 0.05
 
@@ -58,9 +61,18 @@ def test_a_cell_is_unseeable_only_outside_every_floor_annulus_and_footprint():
     assert unseeable(cells[[1, 2, 4]], positions, (1.5, 4.0), 0.25, RES) == 0
 
 
+def test_the_floor_annulus_is_where_the_true_rays_meet_the_floor():
+    """Against the simulator's noise-free points of the same scan (base_link: the robot
+    stands still while the first scan turns)."""
+    first = next(iter(ideal_scans(builtin_scene("corridor"), scans=1)))
+    floor = np.abs(first.true_points[:, 2]) < 1e-6
+    true_ranges = np.hypot(first.true_points[floor, 0], first.true_points[floor, 1])
+    near, far = floor_annulus(first)
+    assert abs(near - true_ranges.min()) < 0.01 and abs(far - true_ranges.max()) < 0.02
+
+
 def test_the_map_never_knows_a_path_no_scan_could_have_seen():
     drive = corridor_drive(6)
-    assert 1.4 < drive["floor_annulus_m"][0] < 1.6  # camera 1 m up, tilted 18 deg down
     assert drive["unseeable_ahead_scans"][:1] == [0]  # the start: nothing seen nearer
     assert set(drive["unseeable_ahead_scans"]) <= set(drive["unknown_ahead_scans"])
     assert drive["unknown_ahead_share"] >= drive["unseeable_ahead_share"] > 0
