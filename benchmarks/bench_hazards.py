@@ -133,7 +133,7 @@ def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
     """Drop-off cells reported free (strict and more than a cell inside) and the edge
     error (`evaluation.drop_off_errors`, the map at the true poses: `truth` is the
     raster's class at each of `seg`'s cells)."""
-    errors = drop_off_errors(seg, raster, np.eye(4), truth)
+    errors = drop_off_errors(seg, raster, np.eye(4))
     return {"drop_free_strict": errors["free_cells_on_drop_offs"],
             "drop_free": errors["free_cells_inside_drop_offs"],
             "edge_cells": errors["drop_off_edge_cells"],

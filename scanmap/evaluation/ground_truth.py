@@ -114,17 +114,9 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
                ) -> dict[str, float]:
     """Obstacle precision, recall, F1, coverage and free precision, and the drop-off
     measures where the raster has drop-offs (module docstring)."""
-    ny, nx = seg.shape
-    xs, ys = (seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution,
-              seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution)
-    gx, gy = np.meshgrid(xs, ys)
-    cells = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
-    in_world = transform_points(world_from_map, cells)
-    truth_class = _lookup(raster.classes, raster.origin, raster.resolution, in_world,
-                          -1).reshape(ny, nx)
+    truth_class = _raster_at_cells(raster.classes, raster, seg, world_from_map, -1)
     near_truth = morphology.dilate(raster.classes == RASTER_OBSTACLE)
-    near_truth_at = _lookup(near_truth, raster.origin, raster.resolution, in_world,
-                            False).reshape(ny, nx)
+    near_truth_at = _raster_at_cells(near_truth, raster, seg, world_from_map, False)
     predicted = seg.state == floor.OBSTACLE
     free = seg.state == floor.FREE
     precision = float(near_truth_at[predicted].mean()) if predicted.any() else float("nan")
@@ -137,14 +129,12 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
             "free_precision": float((truth_class[free] == RASTER_FLOOR).mean()) if free.any()
             else float("nan"),
             "free_cells_on_obstacles": int((truth_class[free] == RASTER_OBSTACLE).sum()),
-            "band": list(raster.band)} | drop_off_errors(seg, raster, world_from_map,
-                                                          truth_class)
+            "band": list(raster.band)} | drop_off_errors(seg, raster, world_from_map)
 
 
-def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray,
-                    truth_class: np.ndarray) -> dict[str, float]:
-    """The drop-off measures of the module docstring (empty where the raster has none);
-    truth_class: the raster's class at each map cell's centre."""
+def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray
+                    ) -> dict[str, float]:
+    """The drop-off measures of the module docstring (empty where the raster has none)."""
     true_drop = raster.classes == RASTER_DROP_OFF
     if not true_drop.any():
         return {}
@@ -152,14 +142,9 @@ def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.n
     detected, observed = _found(raster, RASTER_DROP_OFF, drop, seg.state != floor.UNKNOWN,
                                 seg, world_from_map)
     edge = drop & morphology.dilate(free)
-    rows, cols = np.nonzero(edge)
-    centres = np.column_stack([seg.origin[0] + (cols + 0.5) * seg.resolution,
-                               seg.origin[1] + (rows + 0.5) * seg.resolution,
-                               np.zeros(rows.size)])
     distance = distance_transform(true_drop)[0] * (raster.resolution / seg.resolution)
-    edge_error = _lookup(distance, raster.origin, raster.resolution,
-                         transform_points(world_from_map, centres), np.inf)
-    on_drop = truth_class == RASTER_DROP_OFF
+    edge_error = _raster_at_cells(distance, raster, seg, world_from_map, np.inf)[edge]
+    on_drop = _raster_at_cells(true_drop, raster, seg, world_from_map, False)
     inside = morphology.min_filter(on_drop, 3) > 0  # more than a cell from the edge
     return {"free_cells_on_drop_offs": int((free & on_drop).sum()),
             "free_cells_inside_drop_offs": int((free & inside).sum()),
@@ -169,6 +154,18 @@ def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.n
             "drop_off_edge_error_cells": float(edge_error.max()) if edge.any() else 0.0,
             "drop_off_edge_within_one": float((edge_error <= 1.0).mean()) if edge.any()
             else 1.0}
+
+
+def _raster_at_cells(values: np.ndarray, raster: TruthRaster, seg: Segmentation,
+                     world_from_map: np.ndarray, fill) -> np.ndarray:
+    """(ny, nx): `values` (a grid over the raster's cells) at each map cell's centre,
+    placed in the world by `world_from_map`; `fill` beyond the raster."""
+    ny, nx = seg.shape
+    gx, gy = np.meshgrid(seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution,
+                         seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution)
+    cells = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    return _lookup(values, raster.origin, raster.resolution,
+                   transform_points(world_from_map, cells), fill).reshape(ny, nx)
 
 
 def _found(raster: TruthRaster, kind: int, claimed: np.ndarray, other: np.ndarray,
