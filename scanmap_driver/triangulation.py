@@ -224,14 +224,20 @@ def _undistort_many(xd: np.ndarray, yd: np.ndarray, dist: np.ndarray):
 
 
 def project_head_points(model: ScannerModel, points_head: np.ndarray) -> np.ndarray:
-    """Pixels (N, 2) of `head` points, with distortion (OpenCV's model); NaN behind the camera."""
-    import cv2
-
+    """Pixels (N, 2) of `head` points with OpenCV's distortion model (k1, k2, p1, p2, k3);
+    NaN behind the camera. The formula of cv2.projectPoints, in numpy: the binding also
+    builds the (2N x 14) Jacobian, most of its time on a scan's points (tested against it)."""
+    cam = model.camera
     pose = model.camera_mount.pose
-    rotation = pose[:3, :3].T
-    points_cam = (np.asarray(points_head, dtype=np.float64) - pose[:3, 3]) @ rotation.T
-    pixels, _ = cv2.projectPoints(points_cam.reshape(-1, 1, 3), np.zeros(3), np.zeros(3),
-                                  model.camera.matrix, model.camera.dist_coeffs)
-    pixels = pixels.reshape(-1, 2)
-    pixels[points_cam[:, 2] <= 0.0] = np.nan
+    local = np.einsum("ij,jk->ik", np.asarray(points_head, dtype=np.float64) - pose[:3, 3],
+                      pose[:3, :3])  # without BLAS threads (see sim.geometry.rotate)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x, y = local[:, 0] / local[:, 2], local[:, 1] / local[:, 2]
+    k1, k2, p1, p2, k3 = cam.distortion
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    pixels = np.column_stack([cam.fx * xd + cam.cx, cam.fy * yd + cam.cy])
+    pixels[~(local[:, 2] > 0.0)] = np.nan
     return pixels

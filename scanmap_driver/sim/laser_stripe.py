@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scanner_model import ScannerModel
-from ..triangulation import pixel_rays
-from .geometry import NO_HIT, World, rotate, transform_per_frame
+from ..triangulation import pixel_rays, project_head_points
+from .geometry import NO_HIT, World, transform_per_frame
 
 TOLERANCE = 1e-7  # relative distance mismatch (of 1 + distance) still counted as the same point
 SOLVE_ITERATIONS = 12
@@ -119,26 +119,6 @@ def planes_in_head(planes_map: np.ndarray, poses_map_head: np.ndarray) -> np.nda
     offset = planes_map[:, 3] - np.einsum("ni,ni->n", planes_map[:, :3],
                                           poses_map_head[:, :3, 3])
     return np.column_stack([normal, offset])
-
-
-def project(model: ScannerModel, points_head: np.ndarray) -> np.ndarray:
-    """Pixels (N, 2) of `head` points with OpenCV's distortion model; NaN behind the camera.
-
-    The same as `triangulation.project_head_points`, in numpy (no OpenCV call per batch).
-    """
-    cam = model.camera
-    local = rotate(points_head - np.array(model.camera_mount.position),
-                   model.camera_mount.rotation.T)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x, y = local[:, 0] / local[:, 2], local[:, 1] / local[:, 2]
-    k1, k2, p1, p2, k3 = cam.distortion
-    r2 = x * x + y * y
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
-    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
-    pixels = np.column_stack([cam.fx * xd + cam.cx, cam.fy * yd + cam.cy])
-    pixels[~(local[:, 2] > 0.0)] = np.nan
-    return pixels
 
 
 def _h(model: ScannerModel, u: np.ndarray, v: np.ndarray, planes: np.ndarray) -> np.ndarray:
@@ -293,7 +273,8 @@ def points_from_fan(world: World, model: ScannerModel, base_poses: np.ndarray,
     plane, t, disk_t = world.first_hits(aperture, directions, ray_frame, map_head, base_head,
                                         threads)
     plane[disk_t < t] = NO_HIT
-    pixels = project(model, aperture + np.where(np.isfinite(t), t, 0.0)[:, None] * directions)
+    pixels = project_head_points(
+        model, aperture + np.where(np.isfinite(t), t, 0.0)[:, None] * directions)
     plane = plane.reshape(frames, rays)
     u = pixels[:, 0].reshape(frames, rays)
     v = pixels[:, 1].reshape(frames, rays)

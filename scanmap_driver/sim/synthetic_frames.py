@@ -6,7 +6,7 @@ optionally passed through MJPG (4:2:0 chroma subsampling, as webcams deliver).
 
 Encoder frames are rendered forward, independently of the decoder's inverse mapping
 (rays intersected with the disk plane): points sampled densely on the disk's printed
-face are projected forward by OpenCV's camera model (the simulator's numpy `project`,
+face are projected forward by OpenCV's camera model (`triangulation.project_head_points`,
 checked against cv2.projectPoints in the tests), averaged per pixel, then
 defocus-blurred with a Gaussian.
 """
@@ -22,7 +22,7 @@ from scipy.special import ndtr
 
 from ..scanner_model import ScannerModel
 from ..transforms import invert_pose
-from .laser_stripe import project
+from ..triangulation import project_head_points
 
 LASER_BGR = np.array([0.05, 0.12, 1.0])  # red laser with a little crosstalk into G and B
 RED_LIT = np.array([0.12, 0.18, 1.0])  # BGR scale of a scene lit by red light (a dark room)
@@ -161,7 +161,7 @@ def disk_frame(model: ScannerModel, heading: float, rng: np.random.Generator, *,
     base, values = disk_points(model, heading, texture=texture)
     pose = invert_pose(model.head_pose(heading))
     head = np.einsum("ij,nj->ni", pose[:3, :3], base) + pose[:3, 3]
-    pix = project(model, head)
+    pix = project_head_points(model, head)
     u, v = np.rint(pix[:, 0]), np.rint(pix[:, 1])
     inside = np.isfinite(u) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height)
     idx = (v[inside] * cam.width + u[inside]).astype(np.int64)

@@ -27,7 +27,8 @@ from scanmap_driver.encoder import (
 from scanmap_driver.encoder_disk import EncoderDisk
 from scanmap_driver.errors import ScanError
 from scanmap_driver.scanner_model import CameraIntrinsics, HeadMount, reference_scanner
-from scanmap_driver.sim.synthetic_frames import disk_frame, project, srgb
+from scanmap_driver.sim.synthetic_frames import disk_frame, srgb
+from scanmap_driver.triangulation import project_head_points
 
 MODEL = reference_scanner()
 
@@ -59,7 +60,7 @@ def test_renderer_projection_matches_opencv():
     cam_pts = (pts - pose[:3, 3]) @ pose[:3, :3]
     ref, _ = cv2.projectPoints(cam_pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3),
                                model.camera.matrix, model.camera.dist_coeffs)
-    assert np.allclose(project(model, pts), ref.reshape(-1, 2), atol=1e-6)
+    assert np.allclose(project_head_points(model, pts), ref.reshape(-1, 2), atol=1e-6)
 
 
 # ---------------------------------------------------------------- the ring's geometry

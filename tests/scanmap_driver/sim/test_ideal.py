@@ -9,9 +9,10 @@ import pytest
 
 from scanmap_driver import reference_scanner
 from scanmap_driver.sim import builtin_scene, ideal_scans
-from scanmap_driver.sim.laser_stripe import head_poses, project
+from scanmap_driver.sim.laser_stripe import head_poses
 from scanmap_driver.sim.scene import Motion
 from scanmap_driver.transforms import invert_pose, pose_to_se2, transform_points
+from scanmap_driver.triangulation import project_head_points
 
 from .scene_sdf import surface_distance
 
@@ -69,7 +70,7 @@ def test_one_point_per_image_column_and_frame(corridor_scans):
     for frame in (0, 20, 40):
         rows = ideal.scan.frame_index == frame
         head = transform_points(invert_pose(base_head[frame]), ideal.true_points[rows])
-        u = project(model, head)[:, 0]
+        u = project_head_points(model, head)[:, 0]
         np.testing.assert_allclose(u, np.round(u), atol=1e-6)
         assert np.unique(np.round(u)).size == u.size
 

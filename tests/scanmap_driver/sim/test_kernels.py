@@ -14,7 +14,7 @@ from scanmap_driver import reference_scanner
 from scanmap_driver.sim.geometry import NO_HIT, plane_distance, transform_per_frame
 from scanmap_driver.sim.hitmap import cast_rows, fill_between_rows
 from scanmap_driver.sim.laser_light import WINDOW, draw_stripes
-from scanmap_driver.sim.laser_stripe import camera_rays, project
+from scanmap_driver.sim.laser_stripe import camera_rays
 from scanmap_driver.sim.motion_blur import blur_along_flow, rotation_flow
 from scanmap_driver.sim.shading import DIRECT_SHARE, shade_scene
 from scanmap_driver.sim.texture import (
@@ -26,6 +26,7 @@ from scanmap_driver.sim.texture import (
     surface_axes,
     texture_factor,
 )
+from scanmap_driver.triangulation import project_head_points
 
 
 def _noise_reference(x, y):
@@ -124,7 +125,8 @@ def test_rotation_flow_matches_finite_differences_of_the_projection():
         return np.column_stack([c * points[:, 0] - s * points[:, 1],
                                 s * points[:, 0] + c * points[:, 1], points[:, 2]])
 
-    numeric = (project(model, turned(step)) - project(model, turned(-step))) / (2 * step)
+    numeric = (project_head_points(model, turned(step))
+               - project_head_points(model, turned(-step))) / (2 * step)
     np.testing.assert_allclose(flow.reshape(-1, 2), numeric, rtol=1e-4, atol=1e-2)
     # Far points move about f px per radian along v (the rows), little along u.
     assert np.median(np.abs(flow[..., 1])) == pytest.approx(model.camera.fy, rel=0.1)

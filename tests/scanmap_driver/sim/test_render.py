@@ -8,10 +8,11 @@ import pytest
 from scanmap_driver import reference_scanner, triangulate
 from scanmap_driver.sim import builtin_scene, plan_scans
 from scanmap_driver.sim.camera_effects import SimCameraConfig
-from scanmap_driver.sim.laser_stripe import head_poses, points_from_fan, project
+from scanmap_driver.sim.laser_stripe import head_poses, points_from_fan
 from scanmap_driver.sim.render import LaserAppearance, Renderer
 from scanmap_driver.sim.scene import LIGHTING
 from scanmap_driver.transforms import transform_points
+from scanmap_driver.triangulation import project_head_points
 
 from .scene_sdf import surface_distance
 
@@ -187,7 +188,7 @@ def test_the_encoder_disk_shows_its_code_where_the_geometry_puts_it(office):
                               np.full(angles.size, disk.height)])
     _, base_head = head_poses(MODEL, np.eye(4)[None], np.array([light.truth.heading]))
     head = transform_points(np.linalg.inv(base_head[0]), points)
-    pixels = project(MODEL, head)
+    pixels = project_head_points(MODEL, head)
     seen = []
     for (u, v), bit in zip(pixels, disk.bits(), strict=True):
         if not (0 <= u < 640 and 0 <= v < 480):
