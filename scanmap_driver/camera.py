@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 
 from .errors import DeviceError
+from .jpeg import jpeg_to_bgr
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +92,7 @@ class Camera(abc.ABC):
 
 def decode_jpeg(data: bytes, where: str) -> np.ndarray:
     """A BGR image from JPEG bytes; DeviceError naming `where` if they are not a JPEG."""
-    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    image = jpeg_to_bgr(data)
     if image is None:
         raise DeviceError(f"{where}: a frame of {len(data)} bytes is not a decodable JPEG")
     return image

@@ -67,6 +67,7 @@ import numpy as np
 
 from .errors import CalibrationError, RecordingError
 from .files import fsync_folder, publish, read_json, write_json
+from .jpeg import jpeg_to_bgr
 from .scanner_model import ScannerModel
 from .transforms import se2_to_pose
 from .validate import check_keys, integer, number, vector
@@ -199,7 +200,7 @@ def decode_jpeg(jpeg: bytes, where: str, shape: tuple[int, int] | None = None) -
     body = jpeg.rstrip(b"\0")
     if not body.startswith(b"\xff\xd8") or not body.endswith(b"\xff\xd9"):
         raise RecordingError(f"{where}: not a complete JPEG image (damaged or truncated)")
-    image = cv2.imdecode(np.frombuffer(jpeg, dtype=np.uint8), cv2.IMREAD_COLOR)
+    image = jpeg_to_bgr(body)
     if image is None:
         raise RecordingError(f"{where}: the JPEG image does not decode")
     if shape is not None and image.shape[:2] != shape:
