@@ -843,3 +843,23 @@ def drop_isolated(peak: np.ndarray, flags: np.ndarray, lo: int, hi: int, support
         if math.isfinite(peak[i]) and not keep[i - lo]:
             peak[i] = np.nan
             flags[i] |= ISOLATED
+
+
+@njit(cache=True, nogil=True)
+def colour_beside(image: np.ndarray, u: np.ndarray, v: np.ndarray, offset: float,
+                  out: np.ndarray) -> None:
+    """RGB of the pixel `offset` px either side of each peak (u, v) along its column, rows
+    clipped to the image: the side with the smaller red excess r - max(b, g) (the first
+    on a tie), into out (n, 3) uint8."""
+    height = image.shape[0]
+    for i in range(u.shape[0]):
+        col = int(u[i])
+        best = 0
+        for side in range(2):
+            row = min(max(int(np.rint(v[i] + (2 * side - 1) * offset)), 0), height - 1)
+            b, g, r = np.int64(image[row, col, 0]), np.int64(image[row, col, 1]), \
+                np.int64(image[row, col, 2])
+            excess = r - max(b, g)
+            if side == 0 or excess < best:
+                best = excess
+                out[i, 0], out[i, 1], out[i, 2] = r, g, b

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _laser_kernels as lk
 from .encoder import coverage, decode_heading, fill_unreadable, laser_line_range
 from .errors import ScanError
 from .laser import LaserConfig, extract_stripe
@@ -60,16 +61,10 @@ def colour_beside_stripe(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.
     and keeps the side whose red excess is smaller: the side away from a red object or
     from the laser's own glow.
     """
-    height = image.shape[0]
-    cols = u.astype(np.int64)
-    samples = []
-    for sign in (-1.0, 1.0):
-        rows = np.clip(np.rint(v + sign * COLOUR_OFFSET_PX), 0, height - 1).astype(np.int64)
-        samples.append(image[rows, cols].astype(np.int16))
-    red_excess = [s[:, 2] - np.maximum(s[:, 0], s[:, 1]) for s in samples]
-    pick = np.where(red_excess[0] <= red_excess[1], 0, 1)
-    bgr = np.where(pick[:, None] == 0, samples[0], samples[1]).astype(np.uint8)
-    return bgr[:, ::-1].copy()
+    out = np.empty((len(u), 3), np.uint8)
+    lk.colour_beside(image, np.ascontiguousarray(u, np.float64),
+                     np.ascontiguousarray(v, np.float64), COLOUR_OFFSET_PX, out)
+    return out
 
 
 class ScanAssembler:

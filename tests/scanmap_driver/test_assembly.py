@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from scanmap_driver.assembly import ScanAssembler, colour_beside_stripe
+from scanmap_driver.assembly import COLOUR_OFFSET_PX, ScanAssembler, colour_beside_stripe
 from scanmap_driver.errors import ScanError
 from scanmap_driver.recording import Recording
 from scanmap_driver.transforms import wrap_angle
@@ -73,6 +75,28 @@ def test_colour_sampler_prefers_the_side_without_red():
     image[:20, :, 2] = 250  # a red object above the stripe (rows < 20), BGR
     colours = colour_beside_stripe(image, np.array([0.0, 1.0, 2.0]), np.array([20.0] * 3))
     np.testing.assert_array_equal(colours, np.full((3, 3), 100))
+
+
+def plain_colour_beside(image, u, v):
+    """colour_beside_stripe in numpy, as its docstring says it."""
+    rows = np.clip(np.rint(v[:, None] + np.array([-1.0, 1.0]) * COLOUR_OFFSET_PX), 0,
+                   image.shape[0] - 1).astype(int)
+    sides = image[rows, u.astype(int)[:, None]].astype(int)  # (n, 2, 3) BGR
+    excess = sides[:, :, 2] - np.maximum(sides[:, :, 0], sides[:, :, 1])
+    pick = (excess[:, 1] < excess[:, 0]).astype(int)
+    return sides[np.arange(len(u)), pick, ::-1].astype(np.uint8)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), lines=st.integers(0, 30))
+def test_colour_sampler_matches_its_plain_definition(seed, lines):
+    rng = np.random.default_rng(seed)
+    image = rng.integers(0, 256, (24, 30, 3), dtype=np.uint8)
+    image[rng.random((24, 30)) < 0.3, 2] = 255  # red patches: the sides differ
+    u = rng.integers(0, 30, lines).astype(float)
+    v = rng.uniform(-10.0, 34.0, lines)  # near and past the image's ends: rows clipped
+    np.testing.assert_array_equal(colour_beside_stripe(image, u, v),
+                                  plain_colour_beside(image, u, v))
 
 
 def test_unreadable_disk_frames_are_filled_and_counted(frames):
