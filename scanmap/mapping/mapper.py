@@ -58,6 +58,7 @@ from scanmap.mapping.warm_up import warm_up
 from scanmap.navigation.floor import Segmentation, segment
 from scanmap.navigation.obstacles import ObstacleMap
 from scanmap.registration import RegistrationResult, ScanOdometry
+from scanmap.registration.voxel_hash import COORD_LIMIT, first_per_voxel
 from scanmap.stage_clock import StageClock
 from scanmap_driver.errors import MapError
 from scanmap_driver.scan import Scan
@@ -552,12 +553,9 @@ def _insert_kept(grid: HeightGrid, pose: np.ndarray,
 
 def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
     """Indices of one finite point per occupied voxel (the first), in order."""
-    finite = np.flatnonzero(np.isfinite(points).all(axis=1))
-    if not finite.size:
-        return finite
-    cells = np.floor(points[finite] / voxel).astype(np.int64)
-    cells -= cells.min(axis=0)
-    key = np.ravel_multi_index(cells.T, cells.max(axis=0) + 1)  # within the grid's extent
-    _, first = np.unique(key, return_index=True)
-    return finite[np.sort(first)]
+    first, whole = first_per_voxel(np.ascontiguousarray(points, np.float64), float(voxel))
+    if not whole:
+        raise MapError(f"a scan's points span {COORD_LIMIT} voxels of {voxel} m or more: "
+                       "not one scan's worth")
+    return first
 

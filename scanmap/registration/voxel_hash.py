@@ -107,3 +107,38 @@ def grown(keys: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]
         if keys[i] != EMPTY:
             table_insert(new_keys, new_values, keys[i], values[i])
     return new_keys, new_values
+
+
+@njit(cache=True, nogil=True)
+def first_per_voxel(points: np.ndarray, voxel: float) -> tuple[np.ndarray, bool]:
+    """(indices in order of the first finite point (N, 3) in each voxel of size `voxel`,
+    on a grid from the points' lowest corner; False when they span COORD_LIMIT voxels or
+    more, and the indices are incomplete)."""
+    n = points.shape[0]
+    finite = np.empty(n, np.bool_)
+    low = np.full(3, np.inf)
+    for i in range(n):
+        finite[i] = np.isfinite(points[i, 0]) and np.isfinite(points[i, 1]) \
+            and np.isfinite(points[i, 2])
+        if finite[i]:
+            for k in range(3):
+                low[k] = min(low[k], np.floor(points[i, k] / voxel))
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    keys = np.full(size, EMPTY, np.int64)
+    values = np.full(size, -1, np.int64)
+    out = np.empty(n, np.int64)
+    count = 0
+    for i in range(n):
+        if not finite[i]:
+            continue
+        key = voxel_key(int(np.floor(points[i, 0] / voxel) - low[0]),
+                        int(np.floor(points[i, 1] / voxel) - low[1]),
+                        int(np.floor(points[i, 2] / voxel) - low[2]))
+        if key < 0:
+            return out[:count], False
+        if table_insert(keys, values, key, i) == i:
+            out[count] = i
+            count += 1
+    return out[:count], True

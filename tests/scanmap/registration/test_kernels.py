@@ -17,6 +17,7 @@ from scanmap.registration.recovery import _shift_scores, distance_to_occupied
 from scanmap.registration.voxel_hash import (
     COORD_LIMIT,
     build_table,
+    first_per_voxel,
     grown,
     key_coords,
     new_table,
@@ -61,6 +62,34 @@ def test_hash_table_behaves_like_a_dict(cells):
     unique = np.array(list(expected))
     keys2, values2 = build_table(unique)
     assert [table_find(keys2, values2, k) for k in unique] == list(range(len(unique)))
+
+
+def first_per_voxel_by_sorting(points, voxel):
+    """first_per_voxel's plain definition: np.unique on the voxels of the finite points."""
+    finite = np.flatnonzero(np.isfinite(points).all(axis=1))
+    if not finite.size:
+        return finite
+    cells = np.floor(points[finite] / voxel).astype(np.int64)
+    _, first = np.unique(cells - cells.min(axis=0), axis=0, return_index=True)
+    return finite[np.sort(first)]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 400),
+       voxel=st.sampled_from([0.01, 0.05, 0.3]),
+       far=st.sampled_from([0.0, 3.0e4]), bad=st.floats(0.0, 0.3))
+def test_first_per_voxel_matches_its_plain_definition(seed, n, voxel, far, bad):
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-1.0, 1.0, (n, 3)) + far  # far from the origin too
+    points[rng.random(n) < bad, rng.integers(0, 3)] = rng.choice([np.nan, np.inf, -np.inf])
+    first, whole = first_per_voxel(points, voxel)
+    assert whole
+    np.testing.assert_array_equal(first, first_per_voxel_by_sorting(points, voxel))
+
+
+def test_first_per_voxel_says_when_points_span_too_many_voxels():
+    points = np.array([[0.0, 0.0, 0.0], [COORD_LIMIT * 0.01 + 1.0, 0.0, 0.0]])
+    assert not first_per_voxel(points, 0.01)[1]
 
 
 symmetric = st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6)
