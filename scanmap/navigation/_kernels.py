@@ -308,6 +308,41 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float) -> np.n
 
 
 @njit(cache=True, nogil=True)
+def bridged_steps(heights: np.ndarray, max_step: float) -> np.ndarray:
+    """Candidates that bridge a step too high for the robot: next to two candidates within
+    two cells of each other that lie more than `max_step` but at most twice that apart in
+    height, within `max_step` of both and more than a tenth of it from each (the thin
+    levels a step's face leaves in the cells it crosses). Growing the floor cell by cell
+    within max_step would walk down such a chain (0, -2, -6, -8 cm) onto the floor below
+    an 8 cm step. A cell level with one side (a ramp's edge beside its face) is no bridge."""
+    ny, nx = heights.shape
+    out = np.zeros((ny, nx), np.bool_)
+    margin = 0.1 * max_step
+    for y in range(ny):
+        for x in range(nx):
+            hb = heights[y, x]
+            if np.isnan(hb):
+                continue
+            for yc in range(y, min(y + 3, ny)):  # each pair once: C after B
+                for xc in range(max(x - 2, 0), min(x + 3, nx)):
+                    if yc == y and xc <= x:
+                        continue
+                    step = abs(heights[yc, xc] - hb)
+                    if not max_step < step <= 2.0 * max_step:  # False for NaN
+                        continue
+                    for yd in range(max(y, yc) - 1, min(y, yc) + 2):
+                        for xd in range(max(x, xc) - 1, min(x, xc) + 2):
+                            if (yd == y and xd == x) or (yd == yc and xd == xc) \
+                                    or not (0 <= yd < ny and 0 <= xd < nx):
+                                continue
+                            hd = heights[yd, xd]
+                            if margin < abs(hd - hb) <= max_step \
+                                    and margin < abs(hd - heights[yc, xc]) <= max_step:
+                                out[yd, xd] = True
+    return out
+
+
+@njit(cache=True, nogil=True)
 def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -> np.ndarray:
     """Slope (rad) of the plane fitted to each candidate cell's floor heights and those of
     the candidates within `radius` cells whose heights differ from it by at most

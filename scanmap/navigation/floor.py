@@ -13,7 +13,12 @@ Floor per cell: each candidate's slope comes from a plane fitted to the candidat
 within `slope_reach` at most a step from it; a cell steeper than `max_slope` (default 15
 deg) does not join the floor: it is never FREE, and an OBSTACLE where its surface rises
 into the robot's band. So a ramp within max_slope and a step within the robot's step
-height (default 5 cm) are driven on; a steeper ramp or a higher step is not.
+height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A step's
+face leaves thin levels at in-between heights in the cells it crosses (0, -2, -6, -8 cm
+down an 8 cm step), each within a step of the next: a candidate within a step of two
+candidates up to two cells apart that differ by more than a step (`bridged_steps`)
+joins the floor only from a floor cell next to it, and the growth goes no further from
+it, so the floor below the step is not reached through it.
 
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
@@ -314,7 +319,8 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     cand = nk.floor_candidates(layers.levels, layers.nlev, params.thickness, params.clearance)
     slope = nk.local_slope(cand, max(round(params.slope_reach / res), 1), robot.step_height, res)
     steep = slope > params.max_slope  # False for NaN
-    level = np.where(steep, np.nan, cand)
+    bridges = nk.bridged_steps(cand, robot.step_height) & ~steep  # a step's face
+    level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
     gy, gx = np.nonzero(has)
     cand_points = np.column_stack([xs[gx], ys[gy], level[gy, gx]])
@@ -329,6 +335,9 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
         is_floor = nk.grow_region(level, seeds, robot.step_height)
+        joined = _touching_floor(cand, is_floor, bridges, robot.step_height)
+        is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
+        bridges &= ~joined
         fy, fx = np.nonzero(is_floor)
         planes = _planes_of(np.column_stack([xs[fx], ys[fy], cand[fy, fx]]), params, rng)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
@@ -401,7 +410,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                 layers, is_floor, lowest, params.plane_tolerance))[0] > gap
             lines &= ~morphology.dilate(wide, gap, within=~(known_floor | informative))
         seen_floor |= lines
-    unlit = (probed & bare) | steep
+    unlit = (probed & bare) | steep | bridges
     unlit &= ~is_floor & ~stood & ~assumed & ~holes & ~lines
     unlit |= ~seen_floor
     state = np.empty((ny, nx), np.uint8)
@@ -505,6 +514,21 @@ def _pooled(seen: np.ndarray, reach: int) -> np.ndarray:
         for dx in range(2 * reach + 1):
             out |= padded[dy:dy + ny, dx:dx + nx]
     return out
+
+
+def _touching_floor(heights: np.ndarray, is_floor: np.ndarray, cells: np.ndarray,
+                    max_step: float) -> np.ndarray:
+    """Those of `cells` with a floor 8-neighbour at most max_step from them in height: one
+    step of the floor's growth."""
+    ny, nx = heights.shape
+    floor = np.pad(np.where(is_floor, heights, np.nan), 1, constant_values=np.nan)
+    out = np.zeros((ny, nx), bool)
+    with np.errstate(invalid="ignore"):
+        for dy in range(3):
+            for dx in range(3):
+                if dy != 1 or dx != 1:
+                    out |= np.abs(floor[dy:dy + ny, dx:dx + nx] - heights) <= max_step
+    return out & cells
 
 
 def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -50,3 +51,24 @@ def test_too_few_cells_have_no_slope():
     heights = np.full((5, 5), np.nan)
     heights[2, 2] = heights[2, 3] = 0.0
     assert np.isnan(nk.local_slope(heights, REACH, STEP, RES)).all()
+
+
+def _row(*heights: float) -> np.ndarray:
+    """A 3-row candidate grid whose middle row holds `heights` (m), the rest empty."""
+    grid = np.full((3, len(heights)), np.nan, np.float32)
+    grid[1] = heights
+    return grid
+
+
+@pytest.mark.parametrize("heights,bridges", [
+    ((0.0, 0.0, -0.02, -0.06, -0.08, -0.08), (2, 3)),  # an 8 cm step's face: 0 -> -8 cm
+    ((0.0, 0.0, 0.045, 0.09, 0.09), (2,)),  # 9 cm up in two hops
+    ((0.0, 0.0, 0.024, 0.048, 0.048), ()),  # a 4.8 cm sill: within the step
+    (tuple(0.0122 * k for k in range(8)), ()),  # a 14 deg ramp: a step nowhere
+    ((0.08, 0.08, 0.078, 0.03, 0.0, 0.0), (3,)),  # a ramp's edge, level with the ramp
+    ((0.0, 0.0, 0.2, 0.2), ()),  # a box top: no candidate between
+])
+def test_bridged_steps_are_the_cells_between_two_sides_of_a_step(heights, bridges):
+    flagged = nk.bridged_steps(_row(*heights), 0.05)
+    assert tuple(np.flatnonzero(flagged[1])) == bridges
+    assert not flagged[0].any() and not flagged[2].any()

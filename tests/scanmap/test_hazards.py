@@ -17,7 +17,7 @@ from benchmarks.bench_hazards import (
     traversable,
     truth_classes,
 )
-from scanmap.navigation import DROP_OFF, FREE, LETHAL, inflate
+from scanmap.navigation import DROP_OFF, FREE, LETHAL, inflate, morphology
 from scanmap.navigation.floor import FloorConfig
 from scanmap.navigation.obstacles import ObstacleMap, ObstacleSnapshot, QueryStatus
 from scanmap_driver.sim import RASTER_DROP_OFF, RASTER_FLOOR, Scene, builtin_scene, truth_raster
@@ -78,6 +78,34 @@ def test_a_step_down_just_over_the_step_height_is_never_free(depth):
         measures = drop_measures(step.seg, truth_classes(step.seg, raster), raster)
         assert measures["drop_free"] == 0, f"scan {step.index}"
     assert measures["drop_found"] > 0.95 * measures["drop_cells"]
+
+
+def sunken_room(depth: float) -> Scene:
+    """A 9 m x 5 m room with a 2 m x 1.2 m area `depth` below the floor beside the path."""
+    wall = {"type": "box", "color": [200, 196, 190]}
+    return Scene.from_dict({
+        "format": "scanmap.scene/1", "name": "sunken", "floor": {"color": [150, 140, 125]},
+        "ambient": 0.8, "texture": 0.25,
+        "objects": [wall | {"center": [3.5, y, 0.55], "size": [9.2, 0.1, 1.9]}
+                    for y in (-2.55, 2.55)]
+        + [wall | {"center": [x, 0.0, 0.55], "size": [0.1, 5.0, 1.9]} for x in (-1.05, 8.05)],
+        "floor_regions": [{"center": [3.0, 1.6], "size": [2.0, 1.2], "height": -depth,
+                           "color": [120, 120, 120], "name": "sunken"}],
+        "scan_poses": [[0.4 * k, -0.3, 0.0] for k in range(13)]})
+
+
+@pytest.mark.parametrize("placed", [(0.0, 0.0, 0.0), (0.038, 0.027, -0.345)])
+def test_a_step_down_is_not_walked_down_through_the_cells_of_its_face(placed):
+    # The far face of an 8 cm sunken area leaves thin levels at in-between heights in the
+    # cells it crosses (0, -2, -6, -8 cm): each within a step of the next, they carried
+    # the floor down onto the whole area (FREE) in both placements
+    scene = sunken_room(0.08).moved(*placed)
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
+    for step in mapped(scene):
+        truth = truth_classes(step.seg, raster)
+        inside = morphology.min_filter(truth == RASTER_DROP_OFF, 3) > 0
+        assert not (step.seg.is_floor & inside).any(), f"scan {step.index}"
+        assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
 
 
 def test_ramps_within_max_slope_are_floor_and_steeper_ones_are_not(hazards):
