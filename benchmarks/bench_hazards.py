@@ -133,7 +133,10 @@ def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
     """Drop-off cells reported free (strict and more than a cell inside) and the edge
     error (`evaluation.drop_off_errors`, the map at the true poses: `truth` is the
     raster's class at each of `seg`'s cells)."""
-    errors = drop_off_errors(seg, raster, np.eye(4))
+    errors = drop_off_errors(seg, raster, np.eye(4)) or {  # a scene without drop-offs
+        "free_cells_on_drop_offs": 0, "free_cells_inside_drop_offs": 0,
+        "drop_off_edge_cells": 0, "drop_off_edge_error_cells": 0.0,
+        "drop_off_edge_within_one": 1.0}
     return {"drop_free_strict": errors["free_cells_on_drop_offs"],
             "drop_free": errors["free_cells_inside_drop_offs"],
             "edge_cells": errors["drop_off_edge_cells"],
@@ -144,7 +147,8 @@ def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
 
 
 def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene) -> float:
-    """F1 of floor against true floor over the observed cells of the sloped regions."""
+    """F1 of floor against true floor over the observed cells of the sloped regions (NaN
+    without any)."""
     ny, nx = seg.shape
     x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
     y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
@@ -154,6 +158,8 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
         if any(region.gradient):
             ramps |= region.contains(gx, gy)
     cells = ramps & hits
+    if not cells.any():  # no ramp, or none seen
+        return float("nan")
     predicted, actual = seg.is_floor[cells], truth[cells] == TRUE_FLOOR
     tp = int((predicted & actual).sum())
     return 2.0 * tp / max(int(predicted.sum()) + int(actual.sum()), 1)

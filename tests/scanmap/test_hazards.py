@@ -12,6 +12,7 @@ import pytest
 from benchmarks.bench_hazards import (
     ROBOT,
     drop_measures,
+    hazard_run,
     mapped,
     ramp_f1,
     traversable,
@@ -106,6 +107,12 @@ def test_a_step_down_is_not_walked_down_through_the_cells_of_its_face(placed):
         inside = morphology.min_filter(truth == RASTER_DROP_OFF, 3) > 0
         assert not (step.seg.is_floor & inside).any(), f"scan {step.index}"
         assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
+
+
+def test_the_hazard_measures_hold_on_a_scene_without_drop_offs_or_ramps():
+    measures = hazard_run(2, scene=builtin_scene("corridor"))
+    assert measures["drop_cells"] == measures["drop_free_any_scan"] == 0
+    assert math.isnan(measures["ramp_f1"])
 
 
 def test_ramps_within_max_slope_are_floor_and_steeper_ones_are_not(hazards):
