@@ -308,6 +308,11 @@ class Scene:
                 raise err(f"{where(key)}: expected a string")
         regions = tuple(_floor_region(item, where(f"floor_regions[{i}]"))
                         for i, item in enumerate(_list(top, "floor_regions", where)))
+        for i, a in enumerate(regions):
+            for j in range(i + 1, len(regions)):
+                if _overlap(a.corners, regions[j].corners):
+                    raise err(f"{where(f'floor_regions[{j}]')}: overlaps floor_regions[{i}] "
+                              f"({a.name or 'unnamed'}); regions may share edges, not area")
         people = tuple(_person(item, where(f"people[{i}]"))
                        for i, item in enumerate(_list(top, "people", where)))
         return cls(
@@ -383,6 +388,19 @@ def _name(item: dict, where: str) -> str:
     if not isinstance(name, str):
         raise SceneError(f"{where}.name: expected a string")
     return name
+
+
+def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two convex polygons (K, 2) share area: no edge normal of either separates
+    their projections (polygons that only touch along an edge or at a corner do not)."""
+    for poly in (a, b):
+        edges = np.roll(poly, -1, axis=0) - poly
+        for normal in np.column_stack([edges[:, 1], -edges[:, 0]]):
+            pa, pb = a @ normal, b @ normal
+            slack = 1e-9 * float(np.abs(normal).sum())
+            if pa.max() <= pb.min() + slack or pb.max() <= pa.min() + slack:
+                return False
+    return True
 
 
 def _floor_region(item: Any, where: str) -> FloorRegion:

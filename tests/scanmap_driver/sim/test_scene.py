@@ -208,3 +208,31 @@ def test_a_moved_scene_moves_its_people():
                                 strict=True):
             x, y, z = ours.center
             assert np.allclose(theirs.center, (-y + 1.0, x - 2.0, z))
+
+
+def _with_regions(*regions: dict) -> dict:
+    return DESIGN_EXAMPLE | {"floor_regions": [
+        {"height": -0.1, "color": [90, 90, 90]} | r for r in regions]}
+
+
+@pytest.mark.parametrize("second", [
+    {"center": [3.5, 0.5], "size": [1.0, 1.0]},  # corners inside the first
+    {"center": [3.0, 0.0], "size": [0.4, 0.4], "yaw": 0.7},  # wholly inside, turned
+    {"polygon": [[2.0, -1.0], [4.0, 1.0], [2.0, 1.0]]},  # a triangle across it
+])
+def test_overlapping_floor_regions_fail_naming_both(second, tmp_path):
+    path = tmp_path / "overlap.json"
+    path.write_text(json.dumps(_with_regions(
+        {"center": [3.0, 0.0], "size": [2.0, 2.0], "name": "pit"}, second)))
+    with pytest.raises(SceneError, match=r"floor_regions\[1\]: overlaps floor_regions\[0\] "
+                       r"\(pit\)"):
+        load_scene(path)
+
+
+def test_floor_regions_may_share_an_edge_or_a_corner():
+    scene = Scene.from_dict(_with_regions(
+        {"center": [3.0, 0.0], "size": [2.0, 2.0]},
+        {"center": [5.0, 0.0], "size": [2.0, 2.0]},  # along x = 4
+        {"center": [5.0, 2.0], "size": [2.0, 2.0]},  # along y = 1 with the second
+        {"center": [3.0, 2.0], "size": [2.0, 2.0]}))  # a corner with the second
+    assert len(scene.floor_regions) == 4
