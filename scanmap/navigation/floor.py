@@ -151,13 +151,13 @@ class FloorConfig:
     without observed floor. max_hole: the largest patch without hits (m, each side of its
     bounding box) inside consistent floor that is taken as floor. max_gap: the widest gap
     (m) between two floor samples along a row, column or diagonal taken as floor, away
-    (max_gap) from any drop-off, any surface below the floor model and any unobserved
-    space wider than max_gap: this scanner's lines lie r * 2 pi / 53 apart on the floor at
-    range r (0.19 m at 1.6 m, 0.3 m at 2.5 m), so a hole of max_gap seen from 2.5 m or
-    nearer is crossed by a line and shows itself (below the floor, or a drop-off) before
-    its cells are filled. floor_probe: rays that
-    passed this low (m) over a cell's floor should have lit it (the stripe runs along
-    them); without a return there it is not FREE.
+    (max_gap) from any drop-off, any surface below the floor model, any level reaching
+    more than a step below it and any unobserved space wider than max_gap: this
+    scanner's lines lie r * 2 pi / 53 apart on the floor at range r (0.19 m at 1.6 m,
+    0.3 m at 2.5 m), so a hole of max_gap seen from 2.5 m or nearer is crossed by a line
+    and shows itself (below the floor, or a drop-off) before its cells are filled.
+    floor_probe: rays that passed this low (m) over a cell's floor should have lit it
+    (the stripe runs along them); without a return there it is not FREE.
     min_logodds: the log-odds a level in the robot's band needs to make its cell an
     OBSTACLE. Below it the level is as likely gone as there (a surface seen in one scan
     and seen through twice since: 0.85 - 2 x 0.4 = 0.05 with the grid's defaults, a
@@ -407,7 +407,8 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         if lines.any():  # not within max_gap of a sign of a hole, nor of a wider gap
             # through cells without a hit (not of the space behind a wall)
             lines &= distance_transform(drop | _below_model(
-                layers, is_floor, lowest, params.plane_tolerance))[0] > gap
+                layers, is_floor, lowest, params.plane_tolerance) | _reaching_below(
+                layers, is_floor, lowest, robot.step_height))[0] > gap
             lines &= ~morphology.dilate(wide, gap, within=~(known_floor | informative))
         seen_floor |= lines
     unlit = (probed & bare) | steep | bridges
@@ -473,6 +474,17 @@ def _below_model(layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray,
     with np.errstate(invalid="ignore"):
         return (layers.nlev > 0) & ~is_floor \
             & (layers.levels[:, :, 0, gk.HI] < lowest - tolerance)
+
+
+def _reaching_below(layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray,
+                    depth: float) -> np.ndarray:
+    """Cells with hits, not floor, whose lowest level reaches more than `depth` below the
+    lowest floor around them: the far rim of a hole whose wall, seen only at its top, fell
+    into the cell of the floor beyond it (one level from the wall's hits up to the floor's:
+    not wholly below the floor, so not `_below_model`, yet a sign of a hole)."""
+    with np.errstate(invalid="ignore"):
+        return (layers.nlev > 0) & ~is_floor \
+            & (layers.levels[:, :, 0, gk.LO] < lowest - depth)
 
 
 def _lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:

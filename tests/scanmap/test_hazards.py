@@ -81,18 +81,22 @@ def test_a_step_down_just_over_the_step_height_is_never_free(depth):
     assert measures["drop_found"] > 0.95 * measures["drop_cells"]
 
 
-def sunken_room(depth: float) -> Scene:
-    """A 9 m x 5 m room with a 2 m x 1.2 m area `depth` below the floor beside the path."""
+def room(region: dict, scan_poses: list[list[float]]) -> Scene:
+    """A 9 m x 5 m walled room whose floor holds one `region` (a scene file's entry)."""
     wall = {"type": "box", "color": [200, 196, 190]}
     return Scene.from_dict({
-        "format": "scanmap.scene/1", "name": "sunken", "floor": {"color": [150, 140, 125]},
+        "format": "scanmap.scene/1", "name": "room", "floor": {"color": [150, 140, 125]},
         "ambient": 0.8, "texture": 0.25,
         "objects": [wall | {"center": [3.5, y, 0.55], "size": [9.2, 0.1, 1.9]}
                     for y in (-2.55, 2.55)]
         + [wall | {"center": [x, 0.0, 0.55], "size": [0.1, 5.0, 1.9]} for x in (-1.05, 8.05)],
-        "floor_regions": [{"center": [3.0, 1.6], "size": [2.0, 1.2], "height": -depth,
-                           "color": [120, 120, 120], "name": "sunken"}],
-        "scan_poses": [[0.4 * k, -0.3, 0.0] for k in range(13)]})
+        "floor_regions": [{"color": [120, 120, 120]} | region], "scan_poses": scan_poses})
+
+
+def sunken_room(depth: float) -> Scene:
+    """The room with a 2 m x 1.2 m area `depth` below the floor beside the path."""
+    return room({"center": [3.0, 1.6], "size": [2.0, 1.2], "height": -depth, "name": "sunken"},
+                [[0.4 * k, -0.3, 0.0] for k in range(13)])
 
 
 @pytest.mark.parametrize("placed", [(0.0, 0.0, 0.0), (0.038, 0.027, -0.345)])
@@ -106,6 +110,22 @@ def test_a_step_down_is_not_walked_down_through_the_cells_of_its_face(placed):
         truth = truth_classes(step.seg, raster)
         inside = morphology.min_filter(truth == RASTER_DROP_OFF, 3) > 0
         assert not (step.seg.is_floor & inside).any(), f"scan {step.index}"
+        assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
+
+
+@pytest.mark.parametrize("placed", [(0.007, 0.047, 0.0), (0.015, 0.023, 0.755)])
+def test_a_hole_driven_past_is_never_free(placed):
+    # A hole as wide as max_gap, 1.2 m beside the path. The top of its far wall, where the
+    # laser lands, falls into the cell of the floor beyond it: one level from 5-8 cm below
+    # the floor up to it, not wholly below, so no sign of a hole, and the gaps between the
+    # laser's lines were filled across it: all 16 or 18 of its inner cells FREE for several
+    # scans in both placements
+    size = FloorConfig().max_gap
+    scene = room({"center": [3.0, 1.2], "size": [size, size], "height": -0.5, "name": "hole"},
+                 [[0.6 * k, 0.0, 0.0] for k in range(11)]).moved(*placed)
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
+    for step in mapped(scene):
+        truth = truth_classes(step.seg, raster)
         assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
 
 
