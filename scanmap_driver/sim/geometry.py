@@ -200,19 +200,74 @@ def floor_pieces(x0: float, y0: float, x1: float, y1: float,
     return pieces
 
 
-def _add_region(builder: _Builder, region: FloorRegion, owner: int) -> None:
-    """A floor region's surface and the vertical faces joining it to the floor z = 0."""
+def _add_region(builder: _Builder, region: FloorRegion, owner: int,
+                regions: tuple[FloorRegion, ...], first_owner: int) -> None:
+    """A floor region's surface and the vertical faces joining it to what lies beyond each
+    edge: the floor z = 0, or another region sharing part of that edge (a ramp going down
+    into a lower area meets it without a face where their heights agree). `regions`: the
+    scene's regions, owners first_owner, first_owner + 1, ...; a face between two regions
+    is built once, by the one listed first."""
     corners = region.corners
     top = np.column_stack([corners, region.height_at(corners[:, 0], corners[:, 1])])
     builder.polygon(top, owner, np.array([0.0, 0.0, 1.0]))
     middle = corners.mean(axis=0)
-    raised = top[:, 2].max() > 0.0
     for i in range(len(corners)):
-        j = (i + 1) % len(corners)
-        face = _distinct(np.array([[*corners[i], 0.0], [*corners[j], 0.0], top[j], top[i]]))
-        if len(face) >= 3:
-            outward = 0.5 * (corners[i] + corners[j]) - middle
-            builder.polygon(face, owner, np.append(outward if raised else -outward, 0.0))
+        a, b = corners[i], corners[(i + 1) % len(corners)]
+        outward = 0.5 * (a + b) - middle
+        for t0, t1 in itertools.pairwise(_edge_breaks(a, b, regions)):
+            probe = a + 0.5 * (t0 + t1) * (b - a) + 1e-6 * outward / np.linalg.norm(outward)
+            beyond = next((k for k, other in enumerate(regions)
+                           if other is not region and other.contains(*probe)), None)
+            if beyond is not None and first_owner + beyond < owner:
+                continue  # that region builds the face
+            ends = np.array([a + t0 * (b - a), a + t1 * (b - a)])
+            inner = region.height_at(ends[:, 0], ends[:, 1])
+            outer = np.zeros(2) if beyond is None \
+                else regions[beyond].height_at(ends[:, 0], ends[:, 1])
+            _add_edge_face(builder, ends, inner, outer, outward, owner)
+
+
+def _edge_breaks(a: np.ndarray, b: np.ndarray, regions: tuple[FloorRegion, ...]
+                 ) -> list[float]:
+    """Sorted positions t in [0, 1] along the edge a -> b where what lies beyond it may
+    change: its ends and the regions' corners lying on it."""
+    direction = b - a
+    length2 = float(direction @ direction)
+    breaks = {0.0, 1.0}
+    for other in regions:
+        for corner in other.corners:
+            t = float((corner - a) @ direction) / length2
+            offset = corner - (a + t * direction)
+            if 0.0 < t < 1.0 and offset @ offset <= 1e-18 + 1e-18 * length2:
+                breaks.add(t)
+    return sorted(breaks)
+
+
+FACE_TOLERANCE = 1e-9  # m: surfaces closer than this at an edge meet there
+
+
+def _add_edge_face(builder: _Builder, ends: np.ndarray, inner: np.ndarray,
+                   outer: np.ndarray, outward: np.ndarray, owner: int) -> None:
+    """The vertical face over the edge piece `ends` (2, 2) between the region's heights
+    `inner` and those beyond it `outer` at its ends, facing the lower side; split where
+    the two surfaces cross, none where they meet."""
+    rise = np.where(np.abs(inner - outer) > FACE_TOLERANCE, inner - outer, 0.0)
+    if not rise.any():
+        return
+    inner = outer + rise  # where they meet, one corner
+    if rise[0] * rise[1] < 0.0:  # the surfaces cross along the piece: two triangles
+        s = rise[0] / (rise[0] - rise[1])
+        cross = ends[0] + s * (ends[1] - ends[0])
+        z = inner[0] + s * (inner[1] - inner[0])
+        for k in (0, 1):
+            triangle = np.array([[*ends[k], outer[k]], [*ends[k], inner[k]], [*cross, z]])
+            builder.polygon(triangle, owner, np.append(outward * np.sign(rise[k]), 0.0))
+        return
+    face = _distinct(np.array([[*ends[0], outer[0]], [*ends[1], outer[1]],
+                               [*ends[1], inner[1]], [*ends[0], inner[0]]]))
+    if len(face) >= 3:
+        higher = 1.0 if rise[0] + rise[1] > 0.0 else -1.0  # seen from the lower side
+        builder.polygon(face, owner, np.append(higher * outward, 0.0))
 
 
 def scene_planes(scene: Scene) -> Planes:
@@ -232,9 +287,10 @@ def scene_planes(scene: Scene) -> Planes:
             _add_box(builder, obj, index)
         else:
             _add_cylinder(builder, obj, index)
-    for index, region in enumerate(scene.floor_regions, start=len(scene.objects) + 1):
+    first = len(scene.objects) + 1
+    for index, region in enumerate(scene.floor_regions, start=first):
         if region.material != "glass":
-            _add_region(builder, region, index)
+            _add_region(builder, region, index, scene.floor_regions, first)
     return builder.build()
 
 

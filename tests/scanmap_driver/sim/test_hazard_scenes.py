@@ -149,3 +149,53 @@ def test_people_stand_where_their_track_puts_them_at_each_scan():
         where = np.array(walker.at_scan(ideal.plan.index).center[:2])
         on_walker = np.hypot(*(points[:, :2] - where).T) <= walker.radius + 0.01
         assert on_walker.sum() > 20
+
+
+def ramp_into_lower_area(yaw: float) -> Scene:
+    """A ramp 1 m long going down 15 cm into a 2 m x 2 m area 15 cm below the floor (they
+    share part of an edge), the pair turned by `yaw` about the origin."""
+    c, s = math.cos(yaw), math.sin(yaw)
+
+    def turned(x: float, y: float) -> list[float]:
+        return [c * x - s * y, s * x + c * y]
+
+    return Scene.from_dict({
+        "format": "scanmap.scene/1", "name": "ramp down", "floor": {"color": [150, 140, 125]},
+        "ambient": 0.8, "texture": 0.25,
+        "objects": [], "scan_poses": [[-2.0, 0.0, 0.0]],
+        "floor_regions": [
+            {"polygon": [turned(x, y) for x, y in ((0, -0.6), (1, -0.6), (1, 0.6), (0, 0.6))],
+             "height": -0.075, "gradient": turned(-0.15, 0.0), "name": "ramp"},
+            {"polygon": [turned(x, y) for x, y in ((1, -1), (3, -1), (3, 1), (1, 1))],
+             "height": -0.15, "name": "lower area"}]})
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.4])
+def test_regions_sharing_an_edge_meet_without_a_face_and_keep_their_other_faces(yaw):
+    # Each region's edges used to be joined to z = 0 by a face: a ramp down into a lower
+    # area got a 15 cm fin at their shared edge, which the truth (floor_at) does not have
+    from scanmap_driver.sim.geometry import Raycaster, scene_planes
+
+    scene = ramp_into_lower_area(yaw)
+    caster = Raycaster(scene_planes(scene))
+    c, s = math.cos(yaw), math.sin(yaw)
+    along = np.array([c, s, 0.0])
+    # Level rays 1 cm above the lower area, from 1 m inside it back across the shared
+    # edge (x = 1, |y| < 0.6): the ramp's surface rises to meet them, no face stops them
+    # at the edge; beside the ramp (|y| > 0.6) the lower area's wall does, at the edge
+    y = np.array([-0.5, -0.2, 0.0, 0.3, 0.55, -0.8, 0.8])
+    origins = np.column_stack([2.0 * c - y * s, 2.0 * s + y * c, np.full(y.size, -0.14)])
+    plane, distance = caster.cast(origins, np.tile(-along, (y.size, 1)))
+    hit = origins - distance[:, None] * along
+    level = scene.floor_at(hit[:, 0], hit[:, 1])[0]
+    shared = np.abs(y) < 0.6
+    assert (plane >= 0).all()
+    np.testing.assert_allclose(hit[shared, 2], level[shared], atol=1e-6)  # the ramp's top
+    np.testing.assert_allclose(distance[shared], 1.0 + 0.01 / 0.15, atol=1e-6)
+    np.testing.assert_allclose(distance[~shared], 1.0, atol=1e-6)  # the lower area's wall
+    # Down onto the strip either side of the shared edge: every hit on the true floor
+    u = np.linspace(0.9, 1.1, 41)
+    tops = np.column_stack([u * c - 0.1 * s, u * s + 0.1 * c, np.full(u.size, 1.0)])
+    _, down = caster.cast(tops, np.tile([0.0, 0.0, -1.0], (u.size, 1)))
+    np.testing.assert_allclose(1.0 - down, scene.floor_at(tops[:, 0], tops[:, 1])[0],
+                               atol=1e-6)
