@@ -204,8 +204,9 @@ def _triangle(tri: np.ndarray, slot: np.ndarray, box: np.ndarray) -> None:
 @njit(cache=True, nogil=True)
 def _response(s: np.ndarray, tri: np.ndarray, left: np.ndarray, right: np.ndarray,
               ws: np.int16, wc: np.int16) -> None:
+    zero = left.dtype.type(0)
     for u in range(s.shape[0]):
-        sides = max(left[u], right[u])
+        sides = max(left[u], right[u], zero)  # min(centre - sides, centre), in int16
         s[u] = tri[u] * ws - sides * wc
 
 
@@ -239,9 +240,12 @@ def ridge_kernel(e: np.ndarray, n_pos: int, pad: int, m: int, offset: int, side:
                  count: np.ndarray) -> None:
     """Best ridge response per line, its position, and the number of runs above threshold.
 
-    The response at x is T(x) * side - max(L(x), R(x)) * m^2, i.e. (m^2 * side) times the
-    triangle-weighted mean (weights m - |k|, |k| < m) minus the larger side mean, where
-    L sums e[x-offset-side+1 .. x-offset] and R sums e[x+offset .. x+offset+side-1].
+    The response at x is min(T(x) * side - max(L(x), R(x)) * m^2, T(x) * side), i.e.
+    (m^2 * side) times the triangle-weighted mean (weights m - |k|, |k| < m) minus the
+    larger side mean, and at most that mean itself, where L sums
+    e[x-offset-side+1 .. x-offset] and R sums e[x+offset .. x+offset+side-1]. The stripe is
+    red at its centre: a line less blue than the blue around it (a dip of negative
+    evidence) stands above its sides, but not above zero.
     T is a running sum of running box sums B(y) = e[y] + ... + e[y+m-1], so every filter
     costs O(1) per pixel. Runs start at >= thr_hi and end below thr_lo (hysteresis).
     best, best_pos and count share one integer type, int16 when the response fits it
@@ -297,7 +301,7 @@ def ridge_at(e: np.ndarray, pad: int, line: int, x: int, m: int, offset: int,
         left += np.int64(e[pad + i, line])
     for i in range(x + offset, x + offset + side):
         right += np.int64(e[pad + i, line])
-    return tri * side - max(left, right) * m * m
+    return tri * side - max(left, right, 0) * m * m
 
 
 @njit(cache=True, nogil=True)
@@ -697,14 +701,15 @@ def _integer_peak(vals: np.ndarray, n: int, c: int, m: int, sat: float) -> int:
 
 @njit(cache=True, nogil=True)
 def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_stride: int,
-               pos_stride: int, lo: int, hi: int, best: np.ndarray, best_pos: np.ndarray,
+               pos_stride: int, lines: np.ndarray, best: np.ndarray, best_pos: np.ndarray,
                count: np.ndarray, thr: int, scale: float, m: int, offset: int, side: int,
                half: int, estimator: int, channel: int, sat: float, red_min: float,
                peak: np.ndarray, strength: np.ndarray, width: np.ndarray,
                contrast: np.ndarray, flags: np.ndarray) -> None:
-    """Subpixel peak and quality figures for the lines lo..hi-1 (see `laser.extract_stripe`):
-    the estimator runs on the fit channel smoothed along the line (`smooth_profile`);
-    strength and width are of the unsmoothed samples.
+    """Subpixel peak and quality figures for the image lines `lines` (see
+    `laser.extract_stripe`), whose ridge results are best[k], best_pos[k] and count[k] for
+    line lines[k]: the estimator runs on the fit channel smoothed along the line
+    (`smooth_profile`); strength and width are of the unsmoothed samples.
 
     A white clipped peak needs a flank with a red excess of at least red_min; fitting on
     red, a core clipped in green or blue too is located on luma instead.
@@ -717,19 +722,20 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
     g_raw = np.empty(2 * half + 1)
     clipped = np.zeros(2 * half + 1, np.bool_)
     work = np.empty(18)
-    for line in range(lo, hi):
-        contrast[line] = best[line] * scale
-        if best[line] < thr or best_pos[line] < 0:
+    for k in range(lines.size):
+        line = lines[k]
+        contrast[line] = best[k] * scale
+        if best[k] < thr or best_pos[k] < 0:
             flags[line] |= NONE_FOUND
             continue
-        if count[line] >= 2:
+        if count[k] >= 2:
             flags[line] |= MULTIPLE
-        first = max(0, best_pos[line] - reach)
-        n_buf = min(n_pos, best_pos[line] + reach + 1) - first
+        first = max(0, best_pos[k] - reach)
+        n_buf = min(n_pos, best_pos[k] + reach + 1) - first
         base = line * line_stride
         fit_channel = channel
         _gather(flat, e, pad, line, base, pos_stride, channel, first, n_buf, vals)
-        k0 = _integer_peak(vals, n_buf, best_pos[line] - first, m, sat)
+        k0 = _integer_peak(vals, n_buf, best_pos[k] - first, m, sat)
         centre = 3 * (base + (first + k0) * pos_stride)
         if flat[centre + 2] >= sat:
             flags[line] |= SATURATED
@@ -795,6 +801,44 @@ def _red_flank(flat: np.ndarray, base: int, pos_stride: int, n_pos: int, x0: int
                 seen += 1
             x += direction
     return False
+
+
+@njit(cache=True, nogil=True)
+def wide_lines(peak: np.ndarray, width: np.ndarray, flags: np.ndarray, e: np.ndarray,
+               pad: int, n_pos: int, widths: np.ndarray, step: int, sign_width: float,
+               sign_level: float, reach: int, lo: int, hi: int) -> np.ndarray:
+    """The lines lo..hi-1 where nothing was found (flags NONE_FOUND alone) that lie within
+    `reach` lines of a sign of a wide stripe: a found peak wider than `sign_width`, or a
+    sampled line (every `step`-th; `widths` from `evidence_widths`) whose strongest
+    evidence is that wide and reaches `sign_level` (not the scene's weaker colours)."""
+    n = peak.size
+    sign = np.zeros(n + 1, np.int64)  # prefix counts of the signs
+    for line in range(n):
+        wide = math.isfinite(peak[line]) and width[line] > sign_width
+        if not wide and line % step == 0 and widths[line // step] > sign_width:
+            top = e[pad, line]
+            for x in range(pad + 1, pad + n_pos):
+                top = max(top, e[x, line])
+            wide = top >= sign_level
+        sign[line + 1] = sign[line] + (1 if wide else 0)
+    out = np.empty(hi - lo, np.int64)
+    count = 0
+    for line in range(lo, hi):
+        if flags[line] == NONE_FOUND \
+                and sign[min(line + reach + 1, n)] > sign[max(line - reach, 0)]:
+            out[count] = line
+            count += 1
+    return out[:count]
+
+
+@njit(cache=True, nogil=True)
+def gather_lines(e: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """The columns `lines` of the evidence plane, contiguous (positions + pad, len(lines))."""
+    out = np.empty((e.shape[0], lines.size), e.dtype)
+    for x in range(e.shape[0]):
+        for k in range(lines.size):
+            out[x, k] = e[x, lines[k]]
+    return out
 
 
 @njit(cache=True, nogil=True)

@@ -13,8 +13,15 @@ keeping a strong red response that is absent in green and blue. Here, in four pa
    Gaussian approximation computed with running sums, O(1) per pixel) minus the larger
    of the two side means. A stripe stands above both sides; a wide red object has no
    ridge, and at its edges one side is as high as the centre, so red objects are not
-   taken for the laser. The best response per line is kept; separate runs above the
-   noise threshold are counted (MULTIPLE when two or more).
+   taken for the laser. The response is at most the centre's own mean: the stripe is
+   red, and a line less blue than the blue around it stands above its sides but not
+   above zero. The best response per line is kept; separate runs above the noise
+   threshold are counted (MULTIPLE when two or more). Where the stripe's width is not
+   given, lines where nothing reaches the noise threshold near a sign of a wider stripe
+   are tried again with windows WIDE_FACTOR (2.5) times as wide: a core clipped over a
+   long stretch, or widened by its glow on a white surface, has no ridge in windows sized
+   for the frame's typical stripe (on the real bust frame, 22% of the laser's rows); such
+   a line is kept only where it continues the stripe (pass 4).
 3. Subpixel peak on a fit channel (red by default, luma which keeps full resolution under
    MJPG chroma subsampling, or the evidence) with the chosen estimator; a clipped,
    flat-topped core is located from its flanks (half-height edges, or a Gaussian fit of
@@ -157,6 +164,10 @@ WIDTH_TOLERANCE = 1.5  # a measured width within this factor of DEFAULT_WIDTH ke
 WIDTH_SPREAD = 0.25  # largest interquartile range of the lines' widths, relative
 STATISTICS_STEP = 4  # the frame's red statistics and eq. 1 passes on every 4th line
 DARK_PASSES = MAX_WIDTH  # most eq. 1 pixels per line of a dark room: the laser's alone
+WIDE_FACTOR = 2.5  # the second, wide ridge scale on lines the first found nothing on
+WIDE_SIGN = 1.5  # a stripe this many times the frame's width is a sign of a wide stretch
+WIDE_REACH = 16  # lines from such a sign on which the wide scale is tried
+WIDE_LEVEL = 4.0  # a sampled line's wide evidence is a sign from this times the threshold
 
 
 def filter_windows(fwhm: float) -> tuple[int, int, int, int]:
@@ -169,16 +180,17 @@ def filter_windows(fwhm: float) -> tuple[int, int, int, int]:
     return m, offset, width, fit
 
 
-def frame_stripe_width(e: np.ndarray, pad: int, n_pos: int) -> float:
-    """The stripe's width measured on the evidence plane: the median over sampled lines of
-    the width of each line's strongest evidence (see `_laser_kernels.evidence_widths`),
+def frame_stripe_width(widths: np.ndarray) -> float:
+    """The stripe's width from its `widths` on every WIDTH_SAMPLE_STEP-th line of the
+    evidence plane: the median of the width of each line's strongest evidence
+    (`_laser_kernels.evidence_widths`),
     within MIN_WIDTH..MAX_WIDTH. DEFAULT_WIDTH when no line has a peak, when the lines
     disagree (interquartile range above WIDTH_SPREAD of the median: noise and objects, not
     one stripe), or when the measure is within WIDTH_TOLERANCE of it: the filter holds
     such widths, and MJPG's halved chroma widens the red excess a little, so only a stripe
     that clearly misfits resizes it. The stripe crosses most lines: the median is its
     width."""
-    q25, measured, q75 = lk.quartiles(lk.evidence_widths(e, pad, n_pos, WIDTH_SAMPLE_STEP))
+    q25, measured, q75 = lk.quartiles(widths)
     if not math.isfinite(measured):
         return DEFAULT_WIDTH
     if (q75 - q25 > WIDTH_SPREAD * measured
@@ -265,6 +277,7 @@ def check_frame(image: np.ndarray, image_size: tuple[int, int] | None = None,
 class _Ridges(NamedTuple):
     e: np.ndarray  # evidence plane (positions + 2 pad, lines)
     fwhm: float
+    widths: np.ndarray  # the evidence's width on every WIDTH_SAMPLE_STEP-th line (px)
     noise: float
     noise_thr: float  # the noise part of the ridge threshold
     thr: float  # the whole ridge threshold
@@ -283,7 +296,8 @@ def _ridges(flat: np.ndarray, height: int, width: int, by_rows: bool, dark: bool
     e[pad + n_pos:] = 0
     lk.evidence_kernel(flat, height, width, by_rows, dark, np.uint8(round(t)),
                        np.uint8(s.saturation), pad, e)
-    fwhm = frame_stripe_width(e, pad, n_pos) if s.stripe_width is None else s.stripe_width
+    widths = lk.evidence_widths(e, pad, n_pos, WIDTH_SAMPLE_STEP)
+    fwhm = frame_stripe_width(widths) if s.stripe_width is None else s.stripe_width
     m, offset, side, _ = filter_windows(fwhm)
     noise = lk.evidence_noise(e, pad, n_pos, 4)
     noise_thr = (max(s.min_threshold, s.noise_factor * noise) if s.threshold == "auto"
@@ -302,7 +316,50 @@ def _ridges(flat: np.ndarray, height: int, width: int, by_rows: bool, dark: bool
         rank = (3 * (hi - lo - 1)) // 4
         typical = float(np.partition(best[lo:hi], rank)[rank])
         thr = max(thr, s.relative_threshold * typical / unit)
-    return _Ridges(e, fwhm, noise, noise_thr, thr, unit, best, best_pos, count)
+    return _Ridges(e, fwhm, widths, noise, noise_thr, thr, unit, best, best_pos, count)
+
+
+def _wide_stripe_lines(r: _Ridges, lo: int, hi: int, fit: tuple, colour: tuple,
+                       found: tuple) -> bool:
+    """Pass 2 again at WIDE_FACTOR times the frame's stripe width on the lines where it
+    found nothing: where the core clips over a long stretch, or a glow widens the stripe,
+    windows sized for the frame's typical stripe lie inside it and see no ridge. Only
+    lines within WIDE_REACH of a sign of such a stripe are tried (a sampled line's
+    evidence, or a found peak, WIDE_SIGN times wider than the frame's stripe, or a peak
+    clipped). A line whose wide ridge reaches the frame's threshold is fitted with the
+    wide windows; its contrast stays the narrow one, below the threshold, so it is kept
+    only when it continues the stripe (`keep_continued`, which the caller runs when this
+    returns True).
+    """
+    peak, _, line_width, contrast, flags = found
+    width = min(WIDE_FACTOR * r.fwhm, MAX_WIDTH)
+    if width <= r.fwhm:
+        return False
+    pad, n_pos = fit[2], fit[3]
+    lines = lk.wide_lines(peak, line_width, flags, r.e, pad, n_pos, r.widths,
+                          WIDTH_SAMPLE_STEP, WIDE_SIGN * r.fwhm, WIDE_LEVEL * r.thr,
+                          WIDE_REACH, lo, hi)
+    if lines.size == 0:
+        return False
+    m, offset, side, half = filter_windows(width)
+    unit = m * m * side
+    best = np.empty(lines.size, np.int32)
+    best_pos = np.empty(lines.size, np.int32)
+    count = np.empty(lines.size, np.int32)
+    noise_int = max(1, round(r.noise_thr * unit))
+    lk.ridge_kernel(lk.gather_lines(r.e, lines), n_pos, pad, m, offset, side, noise_int,
+                    noise_int // 2, best, best_pos, count)
+    strong = np.flatnonzero(best >= r.thr * unit)
+    if strong.size == 0:
+        return False
+    lines = lines[strong]
+    narrow = contrast[lines]
+    flags[lines] = 0
+    lk.fit_kernel(*fit, lines, best[strong], best_pos[strong], count[strong],
+                  max(1, round(r.thr * unit)), 1.0 / unit, m, offset, side, half, *colour,
+                  *found)
+    contrast[lines] = narrow
+    return True
 
 
 def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -> StripeResult:
@@ -331,7 +388,7 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
             r = _ridges(flat, height, width, by_rows, True, t, s, pad, lo, hi)
         else:
             t = 0.0
-    e, fwhm, noise, noise_thr, thr, unit, best, best_pos, count = r
+    e, fwhm, _, noise, noise_thr, thr, unit, best, best_pos, count = r
     m, offset, side, half = filter_windows(fwhm)
     thr_int = max(1, round(noise_thr * unit))  # weaker lines: `keep_continued` below
     peak = np.full(n_lines, np.nan)
@@ -345,12 +402,14 @@ def extract_stripe(image_bgr: np.ndarray, settings: LaserConfig | None = None) -
     if thr > noise_thr:
         lk.follow_stripe(e, pad, n_pos, m, offset, side, lo, hi, thr * unit, thr_int,
                          2.0 * fwhm, best, best_pos)
-    lk.fit_kernel(flat, e, pad, n_pos, line_stride, pos_stride, lo, hi, best, best_pos, count,
-               thr_int, 1.0 / unit, m, offset, side, half, ESTIMATORS.index(s.estimator),
-               FIT_CHANNELS.index(s.fit_channel), float(s.saturation),
-               max(s.min_threshold, s.noise_factor * noise), peak, strength, line_width,
-               contrast, flags)
-    if thr > noise_thr:
+    fit = (flat, e, pad, n_pos, line_stride, pos_stride)
+    found = (peak, strength, line_width, contrast, flags)
+    colour = (ESTIMATORS.index(s.estimator), FIT_CHANNELS.index(s.fit_channel),
+              float(s.saturation), max(s.min_threshold, s.noise_factor * noise))
+    lk.fit_kernel(*fit, np.arange(lo, hi), best[lo:hi], best_pos[lo:hi], count[lo:hi],
+                  thr_int, 1.0 / unit, m, offset, side, half, *colour, *found)
+    wide = s.stripe_width is None and _wide_stripe_lines(r, lo, hi, fit, colour, found)
+    if thr > noise_thr or wide:
         lk.keep_continued(peak, contrast, flags, lo, hi, thr, 2.0 * fwhm)
     if s.support > 0:
         lk.drop_isolated(peak, flags, lo, hi, s.support, 2.0 * fwhm)
