@@ -326,7 +326,8 @@ def _wide_stripe_lines(r: _Ridges, lo: int, hi: int, fit: tuple, colour: tuple,
     windows sized for the frame's typical stripe lie inside it and see no ridge. Only
     lines within WIDE_REACH of a sign of such a stripe are tried (a sampled line's
     evidence, or a found peak, WIDE_SIGN times wider than the frame's stripe, or a peak
-    clipped). A line whose wide ridge reaches the frame's threshold is fitted with the
+    clipped). A line whose wide ridge reaches the frame's threshold, with both side
+    windows inside the line (the padding beyond its ends is no side), is fitted with the
     wide windows; its contrast stays the narrow one, below the threshold, so it is kept
     only when it continues the stripe (`keep_continued`, which the caller runs when this
     returns True).
@@ -349,7 +350,9 @@ def _wide_stripe_lines(r: _Ridges, lo: int, hi: int, fit: tuple, colour: tuple,
     noise_int = max(1, round(r.noise_thr * unit))
     lk.ridge_kernel(lk.gather_lines(r.e, lines), n_pos, pad, m, offset, side, noise_int,
                     noise_int // 2, best, best_pos, count)
-    strong = np.flatnonzero(best >= r.thr * unit)
+    clear = offset + side  # both side windows inside the line, not in its zero padding
+    strong = np.flatnonzero((best >= r.thr * unit) & (best_pos >= clear)
+                            & (best_pos < n_pos - clear))
     if strong.size == 0:
         return False
     lines = lines[strong]
