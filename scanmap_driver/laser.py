@@ -324,9 +324,10 @@ def _wide_stripe_lines(r: _Ridges, lo: int, hi: int, fit: tuple, colour: tuple,
     """Pass 2 again at WIDE_FACTOR times the frame's stripe width on the lines where it
     found nothing: where the core clips over a long stretch, or a glow widens the stripe,
     windows sized for the frame's typical stripe lie inside it and see no ridge. Only
-    lines within WIDE_REACH of a sign of such a stripe are tried (a sampled line's
-    evidence, or a found peak, WIDE_SIGN times wider than the frame's stripe, or a peak
-    clipped). A line whose wide ridge reaches the frame's threshold, with both side
+    lines within WIDE_REACH of a sign of such a stripe are tried (`_laser_kernels.
+    wide_lines`: a found peak WIDE_SIGN times wider than the frame's stripe, or a sampled
+    line's evidence that wide and reaching WIDE_LEVEL times the threshold). A line
+    whose wide ridge reaches the frame's threshold, with both side
     windows inside the line (the padding beyond its ends is no side), is fitted with the
     wide windows; its contrast stays the narrow one, below the threshold, so it is kept
     only when it continues the stripe (`keep_continued`, which the caller runs when this
