@@ -553,7 +553,7 @@ def _insert_kept(grid: HeightGrid, pose: np.ndarray,
 
 def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
     """Indices of one finite point per occupied voxel (the first), in order."""
-    first, whole = first_per_voxel(np.ascontiguousarray(points, np.float64), float(voxel))
+    first, whole = first_per_voxel(points, voxel)
     if not whole:
         raise MapError(f"a scan's points span {COORD_LIMIT} voxels of {voxel} m or more: "
                        "not one scan's worth")

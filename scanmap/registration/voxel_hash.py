@@ -109,11 +109,18 @@ def grown(keys: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return new_keys, new_values
 
 
-@njit(cache=True, nogil=True)
 def first_per_voxel(points: np.ndarray, voxel: float) -> tuple[np.ndarray, bool]:
     """(indices in order of the first finite point (N, 3) in each voxel of size `voxel`,
     on a grid from the points' lowest corner; False when they span COORD_LIMIT voxels or
     more, and the indices are incomplete)."""
+    points = np.ascontiguousarray(points, np.float64)
+    return _first_per_voxel(points, float(voxel), *new_table(points.shape[0]))
+
+
+@njit(cache=True, nogil=True)
+def _first_per_voxel(points: np.ndarray, voxel: float, keys: np.ndarray,
+                     values: np.ndarray) -> tuple[np.ndarray, bool]:
+    """`first_per_voxel` with an empty table (keys, values) sized for the points."""
     n = points.shape[0]
     finite = np.empty(n, np.bool_)
     low = np.full(3, np.inf)
@@ -123,11 +130,6 @@ def first_per_voxel(points: np.ndarray, voxel: float) -> tuple[np.ndarray, bool]
         if finite[i]:
             for k in range(3):
                 low[k] = min(low[k], np.floor(points[i, k] / voxel))
-    size = 16
-    while size < 2 * n:
-        size *= 2
-    keys = np.full(size, EMPTY, np.int64)
-    values = np.full(size, -1, np.int64)
     out = np.empty(n, np.int64)
     count = 0
     for i in range(n):
