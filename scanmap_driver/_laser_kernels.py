@@ -699,6 +699,63 @@ def _integer_peak(vals: np.ndarray, n: int, c: int, m: int, sat: float) -> int:
     return k0
 
 
+ACROSS_BEND = 0.25  # px: how far a line's peak may lie off the chord of its neighbours'
+ACROSS_RATIO = 1.5  # how much brighter or dimmer than the line a neighbour's peak may be
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _quick_peak(vals: np.ndarray, n: int, k0: int, m: int) -> tuple[float, float]:
+    """(position, height) of a line's peak near k0, quickly: the vertex of the parabola
+    through the highest sample within m of k0 and its two neighbours (that sample itself
+    at a line end or a flat top), and how far that sample stands above the lowest there."""
+    j = k0
+    low = vals[k0]
+    for k in range(max(0, k0 - m), min(n, k0 + m + 1)):
+        if vals[k] > vals[j]:
+            j = k
+        low = min(low, vals[k])
+    height = vals[j] - low
+    if j == 0 or j == n - 1:
+        return float(j), height
+    curvature = vals[j - 1] - 2.0 * vals[j] + vals[j + 1]
+    if curvature >= 0.0:
+        return float(j), height
+    return j + 0.5 * (vals[j - 1] - vals[j + 1]) / curvature, height
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _blend_across_lines(flat: np.ndarray, e: np.ndarray, pad: int, line: int, n_lines: int,
+                        base: int, line_stride: int, pos_stride: int, channel: int,
+                        first: int, n: int, k0: int, m: int, vals: np.ndarray,
+                        before: np.ndarray, after: np.ndarray) -> None:
+    """vals[:n] = (before + 2 vals + after) / 4: the line's samples smoothed across the
+    stripe with its two neighbouring lines at the same positions, where the stripe runs
+    straight and evenly through the three: the line's quick peak (`_quick_peak`) lies
+    within ACROSS_BEND px of the mean of its neighbours', whose heights are within
+    ACROSS_RATIO of its own.
+
+    The stripe on a surface is continuous, so its neighbours carry nearly the same centre,
+    while sensor noise and the scene's texture (a chessboard square's edge under the
+    stripe) move each line's centroid on its own. The weights are symmetric, so a slanted
+    straight stripe keeps its centre; both neighbours or neither (one alone would pull a
+    slanted stripe towards it); neither where the stripe bends or jumps (a depth edge),
+    which the blend would blur, nor where it brightens or dims (a reflectance edge across
+    it), where the brighter neighbour would pull the centre towards its own."""
+    if line < 1 or line >= n_lines - 1:
+        return
+    _gather(flat, e, pad, line - 1, base - line_stride, pos_stride, channel, first, n, before)
+    _gather(flat, e, pad, line + 1, base + line_stride, pos_stride, channel, first, n, after)
+    at, height = _quick_peak(vals, n, k0, m)
+    at_before, height_before = _quick_peak(before, n, k0, m)
+    at_after, height_after = _quick_peak(after, n, k0, m)
+    if abs(at - 0.5 * (at_before + at_after)) > ACROSS_BEND \
+            or max(height_before, height_after) > ACROSS_RATIO * height \
+            or min(height_before, height_after) * ACROSS_RATIO < height:
+        return
+    for k in range(n):
+        vals[k] = 0.25 * (before[k] + 2.0 * vals[k] + after[k])
+
+
 @njit(cache=True, nogil=True)
 def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_stride: int,
                pos_stride: int, lines: np.ndarray, best: np.ndarray, best_pos: np.ndarray,
@@ -708,8 +765,10 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
                contrast: np.ndarray, flags: np.ndarray) -> None:
     """Subpixel peak and quality figures for the image lines `lines` (see
     `laser.extract_stripe`), whose ridge results are best[k], best_pos[k] and count[k] for
-    line lines[k]: the estimator runs on the fit channel smoothed along the line
-    (`smooth_profile`); strength and width are of the unsmoothed samples.
+    line lines[k]: the estimator runs on the fit channel smoothed across the stripe with
+    the neighbouring lines where the core is not clipped (`_blend_across_lines`), then
+    along the line (`smooth_profile`); strength and width are of the samples before the
+    smoothing along the line.
 
     A white clipped peak needs a flank with a red excess of at least red_min; fitting on
     red, a core clipped in green or blue too is located on luma instead.
@@ -722,6 +781,9 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
     g_raw = np.empty(2 * half + 1)
     clipped = np.zeros(2 * half + 1, np.bool_)
     work = np.empty(18)
+    before = np.empty(2 * reach + 1)
+    after = np.empty(2 * reach + 1)
+    n_lines = flat.size // (3 * n_pos)
     for k in range(lines.size):
         line = lines[k]
         contrast[line] = best[k] * scale
@@ -737,6 +799,11 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
         _gather(flat, e, pad, line, base, pos_stride, channel, first, n_buf, vals)
         k0 = _integer_peak(vals, n_buf, best_pos[k] - first, m, sat)
         centre = 3 * (base + (first + k0) * pos_stride)
+        if flat[centre + 2] < sat:
+            _blend_across_lines(flat, e, pad, line, n_lines, base, line_stride, pos_stride,
+                                fit_channel, first, n_buf, k0, m, vals, before, after)
+            k0 = _integer_peak(vals, n_buf, k0, m, sat)
+            centre = 3 * (base + (first + k0) * pos_stride)
         if flat[centre + 2] >= sat:
             flags[line] |= SATURATED
             if max(flat[centre], flat[centre + 1]) > WHITE_CAP:

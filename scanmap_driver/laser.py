@@ -26,7 +26,14 @@ keeping a strong red response that is absent in green and blue. Here, in four pa
    MJPG chroma subsampling, or the evidence) with the chosen estimator; a clipped,
    flat-topped core is located from its flanks (half-height edges, or a Gaussian fit of
    the unclipped samples; a core clipped wider than the fit window, e.g. white over 8 px
-   and red over 19, from the level crossings of its flanks up to 32 px away).
+   and red over 19, from the level crossings of its flanks up to 32 px away). An
+   unclipped line's samples are first blended with its two neighbouring lines' (weights
+   1, 2, 1) where the stripe runs straight and evenly through the three: the fit becomes
+   2-D, as the usual detectors' Gaussian blur is, without blurring depth or reflectance
+   edges (`_laser_kernels._blend_across_lines`). On the real flat board it removes the
+   outlier the 1-D fit had over the simple detector (876 rows on the line, 2 outliers,
+   like it), and on the simulator's office, corridor and hazards frames the RMS error
+   of the lines within 1.5 px goes from 0.244 to 0.239 px.
 4. Lines whose ridge is under the threshold but above the noise part of it are kept
    when a run of peaks on consecutive lines links them to the stripe (hysteresis along
    the stripe); on such a line the ridge maximum near the stripe of the line before (or

@@ -280,6 +280,18 @@ def test_weak_stripe_beside_a_stronger_distractor_is_kept():
     assert np.all(np.abs(result.peak[lines] - truth[lines]) < 0.5)
 
 
+@pytest.mark.parametrize("step", [0.6, 1.0, 1.5])
+def test_a_small_depth_step_keeps_its_edge_lines_centres(step):
+    """The stripe steps by under 2 px between two lines (a small depth edge): the fit's
+    blend across lines (`_blend_across_lines`) leaves the two lines at the step alone,
+    where averaging with the far side would pull each 0.16-0.34 px towards it."""
+    truth = stripe_path(np.random.default_rng(3), 640, 480)
+    truth[320:] += step
+    image, _ = stripe_frame(np.random.default_rng(4), truth=truth, noise=1.0)
+    error = extract_stripe(image).peak - truth
+    assert np.all(np.abs(error[318:322]) < 0.1)
+
+
 def test_a_stretch_of_wide_clipped_stripe_is_found_without_a_width():
     """Lines 400-559 show the stripe clipped and widened by its glow on a bright surface
     (sigma 3.5 px, 400/255 of full scale), the rest a narrow one: windows sized for the
