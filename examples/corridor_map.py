@@ -18,6 +18,7 @@ from pathlib import Path
 from sim_data import DATA, ensure_recording
 
 from scanmap import MapUpdate, map_to_folder, report_text
+from scanmap.cli import exit_without_collecting
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -46,4 +47,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    exit_without_collecting(main())

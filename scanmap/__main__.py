@@ -1,7 +1,5 @@
 """`python -m scanmap` runs the command line."""
 
-import sys
+from scanmap.cli import run
 
-from scanmap.cli import main
-
-sys.exit(main())
+run()

@@ -24,6 +24,20 @@ def test_help_lists_subcommands_and_runs_as_module():
     assert "usage: scanmap" in result.stdout
 
 
+def test_the_executable_exits_with_the_command_s_code_and_its_output(tmp_path):
+    """`run` skips the shutdown's garbage collections, not the exit code or what was
+    printed (a command that fails still says so)."""
+    missing = tmp_path / "no_recording"
+    result = subprocess.run([sys.executable, "-m", "scanmap", "map", str(missing), "--out",
+                             str(tmp_path / "map")], capture_output=True, text=True)
+    assert result.returncode == 1
+    assert f"scanmap: error: {missing}" in result.stderr
+    script = "from scanmap.cli import exit_without_collecting; print('kept'); " \
+             "exit_without_collecting(3)"
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert (result.returncode, result.stdout) == (3, "kept\n")
+
+
 def test_no_command_prints_help_and_fails(capsys):
     assert main([]) == 2
     assert "usage: scanmap" in capsys.readouterr().out
