@@ -280,6 +280,19 @@ def test_weak_stripe_beside_a_stronger_distractor_is_kept():
     assert np.all(np.abs(result.peak[lines] - truth[lines]) < 0.5)
 
 
+@pytest.mark.parametrize("slope", [-0.6, -0.2, 0.05, 0.3, 0.6])
+def test_a_slanted_straight_stripe_keeps_its_centre(slope):
+    """The fit's blend across lines weighs both neighbours alike, so a straight stripe
+    slanted by up to 0.6 px a line stays centred (one neighbour alone would pull every
+    line slope / 4 towards it)."""
+    truth = 240.37 + slope * (np.arange(640) - 320)
+    image, _ = stripe_frame(np.random.default_rng(1), truth=truth, noise=1.0)
+    error = (extract_stripe(image).peak - truth)[5:-5]
+    assert np.isfinite(error).all()
+    assert abs(error.mean()) < 0.01  # measured within 0.006
+    assert np.sqrt(np.mean(error**2)) < 0.05  # measured 0.02-0.033
+
+
 @pytest.mark.parametrize("step", [0.6, 1.0, 1.5])
 def test_a_small_depth_step_keeps_its_edge_lines_centres(step):
     """The stripe steps by under 2 px between two lines (a small depth edge): the fit's
