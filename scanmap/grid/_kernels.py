@@ -16,15 +16,19 @@ Insertion is one scan at a time, in three passes:
    alone; a ray through the bin of a thin level (a person's arm seen once, a few mm
    thick) passes it, as a voxel map counts it, even where it misses its exact height.
    A level hit in this scan elsewhere and crossed inside is split around the ray
-   instead (see _pass_cell). A level hit in `static_scans` scans or more (a wall,
-   furniture) is passed only by rays within `pass_radius` of its mean hit: where a face
-   cuts a cell, rays through the cell's free part would otherwise wear it away. Guards
-   against eroding surfaces at grazing incidence: the last `clear_margin` metres
-   before the hit clear nothing; a level hit in this scan within `protect` metres of
-   the ray's heights is not cleared ("occupied wins", as in OctoMap, but per height, so
-   a level wrongly spanning a gap still loses the passes through the gap); a level
-   loses at most `max_misses` per scan. A level whose log-odds fall to 0 (p = 0.5) is
-   removed: the space is free, and a new hit there is occupied at once.
+   instead (see _pass_cell). A ray that only enters a level not hit in this scan, from
+   above or below, without reaching its middle bin, trims it to where the ray entered:
+   a person's foot merged with the floor into one level is cut down as later rays pass
+   through its heights one part at a time. A level hit in `static_scans` scans or
+   more (a wall, furniture) is passed only by rays within `pass_radius` of its mean
+   hit: where a face cuts a cell, rays through the cell's free part would otherwise
+   wear it away. Guards against eroding surfaces at grazing incidence: the last
+   `clear_margin` metres before the hit clear nothing; a level hit in this scan within
+   `protect` metres of the ray's heights is not cleared ("occupied wins", as in
+   OctoMap, but per height, so a level wrongly spanning a gap still loses the passes
+   through the gap); a level loses at most `max_misses` per scan. A level whose
+   log-odds fall to 0 (p = 0.5) is removed: the space is free, and a new hit there is
+   occupied at once.
    Rays from one origin (one camera frame) converge there and share their last cells:
    the cell remembers the heights the current origin's rays marked (VKEY, VMASK), and a
    ray stops after `bundle_run` cells in a row that a sibling ray already updated with
@@ -354,10 +358,12 @@ def _crosses(lo: float, hi: float, za: float, zb: float, bits: np.uint64, z_min:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _crosses_any(lev_f, n, base, za, zb, bits, z_min, dz) -> bool:
-    """Whether the ray passed through any of the n levels starting at record base."""
+def _touches_any(lev_f, n, base, za, zb, bits, z_min, dz) -> bool:
+    """Whether the ray passed through, or into, any of the n levels starting at record
+    base (see _pass_cell)."""
     for li in range(base, base + n):
-        if _crosses(lev_f[li, LO], lev_f[li, HI], za, zb, bits, z_min, dz):
+        lo, hi = lev_f[li, LO], lev_f[li, HI]
+        if (za < hi and zb > lo) or _crosses(lo, hi, za, zb, bits, z_min, dz):
             return True
     return False
 
@@ -425,11 +431,13 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
                static_scans, scan) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
-    A level not hit in this scan takes a miss. A level hit in this scan, but not within
-    `protect` of these heights, and crossed strictly inside, wrongly spans free space (a
-    floor merged with a table top before the gap was seen; the floor where a person
-    stood): it is split around the span, and the part without this scan's hits takes the
-    miss, or is cut off when thinner than two height bins. `path` is the ray's x-y segment
+    A level not hit in this scan takes a miss; one the ray only entered, from above or
+    below, without passing its middle (`_crosses`), is trimmed to the ray's nearer end:
+    that part of it is free, the rest keeps its confidence. A level hit in this scan, but
+    not within `protect` of these heights, and crossed strictly inside, wrongly spans
+    free space (a floor merged with a table top before the gap was seen; the floor where
+    a person stood): it is split around the span, and the part without this scan's hits
+    takes the miss, or is cut off when thinner than two height bins. `path` is the ray's x-y segment
     in the cell, relative to its centre (see _beside_static). Returns the levels removed.
     """
     cleared = 0
@@ -440,11 +448,19 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
     for k in range(np.int64(nlev[off]) - 1, -1, -1):
         li = base + k
         lo, hi = lev_f[li, LO], lev_f[li, HI]
-        if not _crosses(lo, hi, za, zb, bits, fp[FP_ZMIN], fp[FP_MASK_DZ]):
+        crossed = _crosses(lo, hi, za, zb, bits, fp[FP_ZMIN], fp[FP_MASK_DZ])
+        if not crossed and not (za < hi and zb > lo):
             continue
         _touch(lev_n, lev_flag, li, scan)
         hit_now = lev_flag[li] & HIT_FLAG
         if not hit_now and _beside_static(lev_f, lev_n, li, path, fp, static_scans):
+            continue
+        if not crossed:  # into the level's top or bottom, not through its middle
+            if not hit_now:  # the part the ray passed through is free: trim it off
+                if za > 0.5 * (lo + hi):
+                    lev_f[li, HI] = za
+                else:
+                    lev_f[li, LO] = zb
             continue
         lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
         if not hit_now:
@@ -551,7 +567,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                         za = pz + dzr * t_clear
                         za, zb = min(za, zb), max(za, zb)
                         clear = height_mask(za, zb, z_min, mdz)
-                        if _crosses_any(lev_f, nlev[off], off * levels, za, zb, clear, z_min,
+                        if _touches_any(lev_f, nlev[off], off * levels, za, zb, clear, z_min,
                                         mdz):
                             cx, cy = x0 + (ix + 0.5) * res, y0 + (iy + 0.5) * res
                             path[0] = points[i, 0] + dxr * t_clear - cx

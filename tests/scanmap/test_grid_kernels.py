@@ -215,6 +215,25 @@ def test_a_ray_through_the_height_bin_of_a_thin_level_clears_it():
     assert level_at(grid)[0, gk.LOGODDS] == pytest.approx(full - miss)
 
 
+def test_a_ray_into_the_top_or_bottom_of_a_level_not_hit_in_the_scan_trims_it_there():
+    """Issue 17: a person's foot merged with the floor into one level [0, 0.16] m; a ray
+    that enters it from above (0.17 to 0.15 m in the cell), not through its middle, shows
+    its top free: the level ends where the ray left it, with its confidence (such levels
+    stayed whole, and their cells obstacles, although later scans saw through every
+    height of them). Likewise a ray rising into the bottom of a level [0.5, 0.88] (0.495 to
+    0.505 m) raises its bottom. Both fail without the rule."""
+    grid, full = one_level_grid(0.0, 0.16)
+    grid.insert(np.array([[2.4, 0.025, 0.01]]), np.array([0.0, 0.025, 0.97]), 10.0)
+    (level,) = level_at(grid)
+    assert level[gk.LO] == pytest.approx(0.0) and level[gk.HI] == pytest.approx(0.15)
+    assert level[gk.LOGODDS] == pytest.approx(full)
+    grid, full = one_level_grid(0.5, 0.88)
+    grid.insert(np.array([[2.4, 0.025, 0.575]]), np.array([0.0, 0.025, 0.095]), 10.0)
+    (level,) = level_at(grid)
+    assert level[gk.LO] == pytest.approx(0.505) and level[gk.HI] == pytest.approx(0.88)
+    assert level[gk.LOGODDS] == pytest.approx(full)
+
+
 def face_grid(scans: int) -> HeightGrid:
     """A box's corner in the cell [2.0, 2.05] x [0, 0.05]: its face x = 2.033 (8 mm past the
     centre) from y = 0 to 0.01, 0.6-0.9 m high, hit in `scans` scans."""
@@ -246,6 +265,21 @@ def test_rays_beside_a_long_seen_face_leave_it(seen, y, kept):
     assert len(level_at(grid, 2.025, 0.025)) == 1
     passes(grid, y, 20)
     assert (len(level_at(grid, 2.025, 0.025)) == 1) == kept
+
+
+@pytest.mark.parametrize(("seen", "y", "trimmed"), [
+    (CONFIG.static_scans, 0.047, False),  # a wall: rays into its top beside the face
+    (CONFIG.static_scans, 0.005, True),  # a wall's top where its hits are
+    (3, 0.047, True),  # seen briefly: trimmed from anywhere in the cell
+])
+def test_rays_into_the_top_of_a_long_seen_face_beside_it_leave_it(seen, y, trimmed):
+    """A ray that enters the top of a face's level (0.91 to 0.89 m; the face 0.6-0.9 m)
+    trims it only where a ray through it would clear it: not beside a wall's face."""
+    grid = face_grid(seen)
+    grid.insert(np.array([[2.4, y, 0.75]]), np.array([0.0, y, 1.71]), 100.0)
+    (level,) = level_at(grid, 2.025, 0.025)
+    assert level[gk.LO] == pytest.approx(0.6)
+    assert level[gk.HI] == pytest.approx(0.89 if trimmed else 0.9, abs=1e-3)
 
 
 def test_misses_per_scan_are_capped():
