@@ -55,8 +55,9 @@ def highlight_rows(rows: list[dict]) -> list[dict]:
 def stamp_line(result: dict) -> str:
     """Where and when the figures were measured."""
     machine = result.get("machine", {})
+    target = f"{machine['cpu_target']}, " if "cpu_target" in machine else ""
     return (f"Measured {result.get('created', '?')} at commit {result.get('commit', '?')} on "
-            f"{machine.get('cpu_model', '?')} ({machine.get('cores', '?')} cores), "
+            f"{machine.get('cpu_model', '?')} ({target}{machine.get('cores', '?')} cores), "
             f"{'quick' if result.get('quick') else 'full'} run; medians, peers in the same "
             "run. Every row: `benchmarks/results/latest.md`.")
 
