@@ -358,12 +358,18 @@ def _crosses(lo: float, hi: float, za: float, zb: float, bits: np.uint64, z_min:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _enters(lo: float, hi: float, za: float, zb: float) -> bool:
+    """A ray spanning heights [za, zb] in a cell reached into the level [lo, hi]."""
+    return za < hi and zb > lo
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _touches_any(lev_f, n, base, za, zb, bits, z_min, dz) -> bool:
     """Whether the ray passed through, or into, any of the n levels starting at record
     base (see _pass_cell)."""
     for li in range(base, base + n):
         lo, hi = lev_f[li, LO], lev_f[li, HI]
-        if (za < hi and zb > lo) or _crosses(lo, hi, za, zb, bits, z_min, dz):
+        if _enters(lo, hi, za, zb) or _crosses(lo, hi, za, zb, bits, z_min, dz):
             return True
     return False
 
@@ -437,8 +443,9 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
     not within `protect` of these heights, and crossed strictly inside, wrongly spans
     free space (a floor merged with a table top before the gap was seen; the floor where
     a person stood): it is split around the span, and the part without this scan's hits
-    takes the miss, or is cut off when thinner than two height bins. `path` is the ray's x-y segment
-    in the cell, relative to its centre (see _beside_static). Returns the levels removed.
+    takes the miss, or is cut off when thinner than two height bins. `path` is the ray's
+    x-y segment in the cell, relative to its centre (see _beside_static). Returns the
+    levels removed.
     """
     cleared = 0
     base = off * levels
@@ -449,7 +456,7 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
         li = base + k
         lo, hi = lev_f[li, LO], lev_f[li, HI]
         crossed = _crosses(lo, hi, za, zb, bits, fp[FP_ZMIN], fp[FP_MASK_DZ])
-        if not crossed and not (za < hi and zb > lo):
+        if not crossed and not _enters(lo, hi, za, zb):
             continue
         _touch(lev_n, lev_flag, li, scan)
         hit_now = lev_flag[li] & HIT_FLAG

@@ -8,7 +8,6 @@ a beam crossed it (the one height the laser sees).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
@@ -34,19 +33,12 @@ def fuse_carmen(log: CarmenLog, config: GridConfig | None = None, height: float 
     config = config or GridConfig()
     config = replace(config, max_range=max(config.max_range, log.max_range), levels=1)
     grid = HeightGrid(config)
-    grid.reserve((points, np.broadcast_to(origin, points.shape))
-                  for points, origin in _rays(log, height))
-    for index, (points, origin) in enumerate(_rays(log, height)):
-        grid.insert(points, origin, float(log.times[index]))
+    rays = [(transform_points(se2_to_pose(*pose), log.scan_points(index, height=height)),
+             np.array([*pose[:2], height])) for index, pose in enumerate(log.poses)]
+    grid.reserve((points, np.broadcast_to(origin, points.shape)) for points, origin in rays)
+    for (points, origin), stamp in zip(rays, log.times, strict=True):
+        grid.insert(points, origin, float(stamp))
     return grid
-
-
-def _rays(log: CarmenLog, height: float) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """Each scan's points in map and its laser's position, at `height`."""
-    for index in range(len(log)):
-        pose = se2_to_pose(*log.poses[index])
-        yield (transform_points(pose, log.scan_points(index, height=height)),
-               np.array([*log.poses[index, :2], height]))
 
 
 def carmen_segmentation(grid: HeightGrid, robot: RobotShape | None = None) -> Segmentation:
