@@ -76,7 +76,10 @@ def test_motor_speed_slow_start_and_ripple(terminal, firmware):
     angle = np.array([firmware.angle_at(x) for x in t])
     mean_speed = (angle[-1] - angle[0]) / (t[-1] - t[0])
     assert mean_speed == pytest.approx(nominal, rel=0.1)
-    assert 1.4 < 2 * math.pi / mean_speed < 2.3  # about 2 s per revolution
+    # The line above holds the firmware to the motor model, whichever its parameters; this
+    # one holds both to the paper's turn of about 2 s (1.6 s at speed 800 with the
+    # model's defaults): it fails if the speed scale or the full speed drifts by a third.
+    assert 1.4 < 2 * math.pi / mean_speed < 2.3
     # slow start: in the first 0.3 s the head turns far less than at steady speed
     early = firmware.angle_at(start + 0.3) - firmware.angle_at(start)
     assert early < 0.3 * mean_speed * 0.6
