@@ -16,10 +16,11 @@ Insertion is one scan at a time, in three passes:
    alone; a ray through the bin of a thin level (a person's arm seen once, a few mm
    thick) passes it, as a voxel map counts it, even where it misses its exact height.
    A level hit in this scan elsewhere and crossed inside is split around the ray
-   instead (see _pass_cell). A ray that only enters a level not hit in this scan, from
-   above or below, without reaching its middle bin, trims it to where the ray entered:
-   a person's foot merged with the floor into one level is cut down as later rays pass
-   through its heights one part at a time. A level hit in `static_scans` scans or
+   instead (see _pass_cell). A ray that only enters a level from above or below, without
+   reaching its middle bin, trims it to where the ray entered, unless this scan hit the
+   level within `protect` of the ray: a person's foot merged with the floor into one
+   level is cut down as later rays pass through its heights one part at a time, though
+   the floor under it is hit in every scan. A level hit in `static_scans` scans or
    more (a wall, furniture) is passed only by rays within `pass_radius` of its mean
    hit: where a face cuts a cell, rays through the cell's free part would otherwise
    wear it away. Guards against eroding surfaces at grazing incidence: the last
@@ -438,8 +439,9 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
     A level not hit in this scan takes a miss; one the ray only entered, from above or
-    below, without passing its middle (`_crosses`), is trimmed to the ray's nearer end:
-    that part of it is free, the rest keeps its confidence. A level hit in this scan, but
+    below, without passing its middle (`_crosses`), is trimmed to the ray's nearer end
+    (also when hit in this scan, but not within `protect` of that end): that part of it
+    is free, the rest keeps its confidence. A level hit in this scan, but
     not within `protect` of these heights, and crossed strictly inside, wrongly spans
     free space (a floor merged with a table top before the gap was seen; the floor where
     a person stood): it is split around the span, and the part without this scan's hits
@@ -463,11 +465,13 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
         if not hit_now and _beside_static(lev_f, lev_n, li, path, fp, static_scans):
             continue
         if not crossed:  # into the level's top or bottom, not through its middle
-            if not hit_now:  # the part the ray passed through is free: trim it off
-                if za > 0.5 * (lo + hi):
+            # The part the ray passed through is free: trim it off, unless this scan hit
+            # the level within `protect` of it.
+            if za > 0.5 * (lo + hi):
+                if not hit_now or za > lev_f[li, SHI] + protect:
                     lev_f[li, HI] = za
-                else:
-                    lev_f[li, LO] = zb
+            elif not hit_now or zb < lev_f[li, SLO] - protect:
+                lev_f[li, LO] = zb
             continue
         lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
         if not hit_now:

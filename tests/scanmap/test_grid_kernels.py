@@ -234,6 +234,24 @@ def test_a_ray_into_the_top_or_bottom_of_a_level_not_hit_in_the_scan_trims_it_th
     assert level[gk.LOGODDS] == pytest.approx(full)
 
 
+@pytest.mark.parametrize(("hit_z", "trimmed"), [(0.0, True), (0.12, False)])
+def test_a_ray_into_the_top_of_a_level_hit_in_the_scan_trims_it_beyond_protect(hit_z, trimmed):
+    """The floor where a person stood, merged with the foot into one level [0, 0.16] m, is
+    hit on the floor in every scan: a ray entering its top (0.17 to 0.15 m) more than
+    `protect` above this scan's hits still shows that part free (such cells stayed
+    obstacles for tens of scans in the people scene). A hit this scan within `protect` of
+    the ray (0.12 m) keeps it: occupied wins."""
+    grid, full = one_level_grid(0.0, 0.16)
+    hit = np.array([[2.025, 0.025, hit_z]])
+    points = np.vstack([hit, [[2.4, 0.025, 0.01]]])
+    origins = np.vstack([hit + [0.0, 0.0, 0.01], [[0.0, 0.025, 0.97]]])
+    grid.insert(points, origins, 10.0)
+    (level,) = level_at(grid)
+    assert level[gk.LO] == pytest.approx(0.0)
+    assert level[gk.HI] == pytest.approx(0.15 if trimmed else 0.16)
+    assert level[gk.LOGODDS] == pytest.approx(full)
+
+
 def face_grid(scans: int) -> HeightGrid:
     """A box's corner in the cell [2.0, 2.05] x [0, 0.05]: its face x = 2.033 (8 mm past the
     centre) from y = 0 to 0.01, 0.6-0.9 m high, hit in `scans` scans."""
