@@ -63,6 +63,8 @@ class RegistrationConfig:
       needs to move a start). 1 turns the check off.
     restart_after: after this many failed scans in a row the map is stale (the robot was
       carried away, or the scene changed): it restarts from the next scan at its guess.
+    match_blobs: with `scans_2d`, also match points that are no line (posts, corners)
+      point-to-distribution (see `icp`); without, only walls count.
     """
 
     planar: bool = True
@@ -95,13 +97,15 @@ class RegistrationConfig:
     max_rotation: float = 0.8
     consistency_level: float = 0.999
     restart_after: int = 3
+    match_blobs: bool = True
 
     @classmethod
     def for_2d_scans(cls, max_range: float = 12.0, **changes: float | bool) -> RegistrationConfig:
         """Settings for a 2-D laser scanner (e.g. CARMEN logs: 180 beams at one height).
 
-        Walls are lines of the single scan plane (`scans_2d`); a scan has ~150 usable
-        points, so one well-aligned point already counts (min_constraint 1) and a scan
+        Walls are lines of the single scan plane (`scans_2d`), and what is no line (a
+        post, a corner, clutter) is matched point-to-distribution (see `icp`); a scan has
+        ~150 usable points, so one well-aligned point already counts (min_constraint 1) and a scan
         sees much the map has not (min_fitness 0.1, coarse search below 0.3); ranges to
         `max_range` and a map as wide. The voxels stay 0.1 m: of (0.05, 0.1, 0.15) m
         for source and map, (0.1, 0.1) did best over the Intel and ACES logs together.
@@ -119,7 +123,7 @@ class RegistrationConfig:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if f.name in ("planar", "scans_2d"):
+            if f.name in ("planar", "scans_2d", "match_blobs"):
                 continue
             if not isinstance(value, (int, float)) or not value >= 0:
                 raise RegistrationError(f"RegistrationConfig.{f.name}: expected a number >= 0, "

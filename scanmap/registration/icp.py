@@ -10,6 +10,16 @@ jamb's. The residual is the signed distance to that voxel's plane (its horizonta
 in planar mode), r = n . (R p + t - mu); its Jacobian for a body-frame increment
 (rho, phi) is [R^T n, p x R^T n].
 
+2-D laser scans also match blobs (`planes.BLOB`: points that are no line, a post, a
+corner, clutter) point-to-distribution, as NDT does: two residuals, along the blob's
+narrowest and its widest spread, each over that spread's variance. Matching walls only,
+a scan of an open hall whose walls are few or far took yaw from odometry in the
+directions its lines left free; over seven start scans of each of the seven CARMEN logs
+the 1 m relative error fell on six of them (Acapulco 66.9 -> 62.5 mm, Edmonton
+61.9 -> 56.9, Intel 43.1 -> 39.8, FHW 56.7 -> 54.5, Freiburg 37.4 -> 36.7, Belgioioso
+31.2 -> 30.7) and stayed on ACES (49.3 -> 49.3). A point matched to a blob counts once
+as an inlier (fitness) and twice as a residual.
+
 Weights: Geman-McClure, w = (k^2 / (k^2 + r^2))^2 with k a third of the threshold, over
 the point's variance (range sigma of the mean + plane thickness + model floor), so a
 close, sharp point counts more than a far, noisy one. One kernel pass builds H and g for
@@ -32,7 +42,7 @@ from scanmap.registration.config import RegistrationConfig
 from scanmap.registration.degeneracy import Degeneracy, analyse_degeneracy
 from scanmap.registration.lie import PLANAR_AXES, between, retract
 from scanmap.registration.local_map import LINE, PLANE, LocalMap
-from scanmap.registration.preprocess import Source
+from scanmap.registration.preprocess import Source, blob_flag
 from scanmap.registration.prior import Prior
 from scanmap.registration.voxel_hash import table_find, voxel_key
 
@@ -55,12 +65,14 @@ class Alignment:
 
 @njit(cache=True, nogil=True)
 def normal_equations(src, src_normals, src_var, rotation, translation, table_keys,
-                     table_values, means, normals, plane_var, flags, flag, inv_voxel, rings_xy,
-                     rings_z, max_dist, kappa, var_floor, min_cos):
-    """H (6x6), g (6) and [inliers, sum r^2, sum w r^2, sum w] of the point-to-plane cost."""
+                     table_values, means, normals, plane_var, flags, flag, spread_var,
+                     blob_flag, inv_voxel, rings_xy, rings_z, max_dist, kappa, var_floor,
+                     min_cos):
+    """H (6x6), g (6) and [residuals, sum r^2, sum w r^2, sum w, inlier points] of the
+    point-to-plane cost (two residuals for a point matched to a blob)."""
     hessian = np.zeros((6, 6))
     gradient = np.zeros(6)
-    stats = np.zeros(4)
+    stats = np.zeros(5)
     jac = np.zeros(6)
     k2 = kappa * kappa
     for i in range(src.shape[0]):
@@ -86,10 +98,11 @@ def normal_equations(src, src_normals, src_var, rotation, translation, table_key
                     if key < 0:
                         continue
                     j = table_find(table_keys, table_values, key)
-                    if j < 0 or (flags[j] & flag) == 0:
+                    if j < 0 or (flags[j] & (flag | blob_flag)) == 0:
                         continue
-                    if known and abs(ux * normals[j, 0] + uy * normals[j, 1]
-                                     + uz * normals[j, 2]) < min_cos:
+                    if known and flags[j] & flag and abs(
+                            ux * normals[j, 0] + uy * normals[j, 1] + uz * normals[j, 2]) \
+                            < min_cos:
                         continue  # another surface: a wall's point never matches a jamb
                     ex, ey, ez = qx - means[j, 0], qy - means[j, 1], qz - means[j, 2]
                     d2 = ex * ex + ey * ey + ez * ez
@@ -98,54 +111,72 @@ def normal_equations(src, src_normals, src_var, rotation, translation, table_key
                         best = j
         if best < 0:
             continue
-        nx, ny, nz = normals[best, 0], normals[best, 1], normals[best, 2]
-        r = nx * (qx - means[best, 0]) + ny * (qy - means[best, 1]) + nz * (qz - means[best, 2])
-        if abs(r) > max_dist:
+        ex, ey, ez = qx - means[best, 0], qy - means[best, 1], qz - means[best, 2]
+        # A wall's point: its distance to the wall. A blob's: its offsets along the blob's
+        # narrowest and widest spread, each weighed by the spread's variance in it.
+        parts = 1 if flags[best] & flag else 2
+        if parts == 2 and ex * ex + ey * ey > max_dist * max_dist:
             continue
-        # m = R^T n (normal in base_link); J = [m, p x m].
-        mx = rotation[0, 0] * nx + rotation[1, 0] * ny + rotation[2, 0] * nz
-        my = rotation[0, 1] * nx + rotation[1, 1] * ny + rotation[2, 1] * nz
-        mz = rotation[0, 2] * nx + rotation[1, 2] * ny + rotation[2, 2] * nz
-        jac[0], jac[1], jac[2] = mx, my, mz
-        jac[3] = py * mz - pz * my
-        jac[4] = pz * mx - px * mz
-        jac[5] = px * my - py * mx
-        robust = k2 / (k2 + r * r)
-        w = robust * robust / (src_var[i] + plane_var[best] + var_floor)
-        for a in range(6):
-            wa = w * jac[a]
-            gradient[a] += wa * r
-            for b in range(a, 6):
-                hessian[a, b] += wa * jac[b]
-        stats[0] += 1.0
-        stats[1] += r * r
-        stats[2] += w * r * r
-        stats[3] += w
+        matched = False
+        for part in range(parts):
+            nx, ny, nz = normals[best, 0], normals[best, 1], normals[best, 2]
+            var = plane_var[best]
+            if part == 1:
+                nx, ny, var = -ny, nx, spread_var[best]
+            r = nx * ex + ny * ey + nz * ez
+            if abs(r) > max_dist:
+                continue
+            # m = R^T n (normal in base_link); J = [m, p x m].
+            mx = rotation[0, 0] * nx + rotation[1, 0] * ny + rotation[2, 0] * nz
+            my = rotation[0, 1] * nx + rotation[1, 1] * ny + rotation[2, 1] * nz
+            mz = rotation[0, 2] * nx + rotation[1, 2] * ny + rotation[2, 2] * nz
+            jac[0], jac[1], jac[2] = mx, my, mz
+            jac[3] = py * mz - pz * my
+            jac[4] = pz * mx - px * mz
+            jac[5] = px * my - py * mx
+            robust = k2 / (k2 + r * r)
+            w = robust * robust / (src_var[i] + var + var_floor)
+            for a in range(6):
+                wa = w * jac[a]
+                gradient[a] += wa * r
+                for b in range(a, 6):
+                    hessian[a, b] += wa * jac[b]
+            stats[0] += 1.0
+            stats[1] += r * r
+            stats[2] += w * r * r
+            stats[3] += w
+            matched = True
+        if matched:
+            stats[4] += 1.0
     for a in range(6):
         for b in range(a):
             hessian[a, b] = hessian[b, a]
     return hessian, gradient, stats
 
 
-def _map_arrays(local_map: LocalMap, planar: bool) -> tuple:
+def _map_arrays(local_map: LocalMap, config: RegistrationConfig) -> tuple:
+    """Means, normals, normal variances, flags, the usable flag and the blob flag (blobs
+    count in planar mode on 2-D scans only: on the 3-D scanner's, a voxel that is no wall
+    is floor or a table top, which cannot move x, y or yaw)."""
     n = len(local_map)
-    if planar:
+    if config.planar:
         return (local_map.means[:n], local_map.line_normals[:n], local_map.line_var[:n],
-                local_map.flags[:n], LINE)
+                local_map.flags[:n], LINE, blob_flag(config))
     return (local_map.means[:n], local_map.normals[:n], local_map.plane_var[:n],
-            local_map.flags[:n], PLANE)
+            local_map.flags[:n], PLANE, 0)
 
 
 def evaluate(source: Source, local_map: LocalMap, pose: np.ndarray, threshold: float,
              config: RegistrationConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(H 6x6, g 6, stats) of the cost at `pose` (map-local) with correspondence `threshold`."""
-    means, normals, var, flags, flag = _map_arrays(local_map, config.planar)
+    means, normals, var, flags, flag, blobs = _map_arrays(local_map, config)
     voxel = local_map.voxel_size
     rings = 1 if threshold <= voxel else 2
     return normal_equations(source.points, source.normals, source.variance,
                             np.ascontiguousarray(pose[:3, :3]), np.ascontiguousarray(pose[:3, 3]),
                             local_map.table_keys, local_map.table_values, means, normals, var,
-                            flags, flag, 1.0 / voxel, rings, 1, threshold, threshold / 3.0,
+                            flags, flag, local_map.spread_var[:len(local_map)], blobs,
+                            1.0 / voxel, rings, 1, threshold, threshold / 3.0,
                             config.sigma_floor ** 2, np.cos(config.max_normal_angle))
 
 
@@ -164,7 +195,7 @@ def align(source: Source, local_map: LocalMap, start: np.ndarray, prior: Prior,
     pose, iterations = _gauss_newton(source, local_map, start, prior, threshold, config, axes,
                                      lever)
     fine = threshold
-    stats = np.zeros(4)
+    stats = np.zeros(5)
     if np.isfinite(pose).all():
         _, _, stats = evaluate(source, local_map, pose, threshold, config)
         if stats[0] > 0:
@@ -182,7 +213,7 @@ def align(source: Source, local_map: LocalMap, start: np.ndarray, prior: Prior,
     h, _ = degeneracy.project(h, gradient[axes])
     if finite and fine < threshold:
         _, _, stats = evaluate(source, local_map, pose, threshold, config)
-    return _alignment(pose, h, prior.information(axes), fine_stats, int(stats[0]), degeneracy,
+    return _alignment(pose, h, prior.information(axes), fine_stats, int(stats[4]), degeneracy,
                       iterations, finite, axes)
 
 

@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from scanmap.registration.planes import LINE, PLANE, accumulate, fit_voxel, pool_shape
+from scanmap.registration.planes import BLOB, LINE, PLANE, accumulate, fit_voxel, pool_shape
 from scanmap.registration.voxel_hash import (
     COORD_LIMIT,
     fill_table,
@@ -34,7 +34,7 @@ from scanmap.registration.voxel_hash import (
 )
 from scanmap_driver.errors import MapError
 
-__all__ = ["LINE", "PLANE", "LocalMap"]
+__all__ = ["BLOB", "LINE", "PLANE", "LocalMap"]
 
 
 class LocalMap:
@@ -62,6 +62,7 @@ class LocalMap:
                   "means": (np.float64, (3,)), "normals": (np.float64, (3,)),
                   "line_normals": (np.float64, (3,)), "flags": (np.int64, ()),
                   "plane_var": (np.float64, ()), "line_var": (np.float64, ()),
+                  "spread_var": (np.float64, ()),
                   "last_seen": (np.int64, ())}
         for name, (dtype, tail) in arrays.items():
             fresh = np.zeros((capacity, *tail), dtype=dtype)
@@ -96,7 +97,8 @@ class LocalMap:
                         self.flatness, self.scans_2d, self.table_keys, self.table_values,
                         self.voxel_keys, self.counts,
                         self.sums, self.squares, self.noise, self.means, self.normals,
-                        self.line_normals, self.flags, self.plane_var, self.line_var)
+                        self.line_normals, self.flags, self.plane_var, self.line_var,
+                        self.spread_var)
         if outside:
             raise MapError(f"LocalMap.insert: {outside} points lie beyond "
                            f"{COORD_LIMIT * self.voxel_size:.0f} m of the local origin")
@@ -109,7 +111,8 @@ class LocalMap:
         if keep.size == n:
             return
         for name in ("voxel_keys", "counts", "noise", "sums", "squares", "means", "normals",
-                     "line_normals", "flags", "plane_var", "line_var", "last_seen"):
+                     "line_normals", "flags", "plane_var", "line_var", "spread_var",
+                     "last_seen"):
             array = getattr(self, name)
             array[:keep.size] = array[keep]
         self.size = int(keep.size)
@@ -162,7 +165,7 @@ def _insert_points(points, variance, rotation, translation, inv_voxel, voxel, sc
 @njit(cache=True, nogil=True)
 def _refresh_planes(touched, voxel, max_count, min_points, flatness, scans_2d, table_keys,
                     table_values, voxel_keys, counts, sums, squares, noise, means, normals,
-                    line_normals, flags, plane_var, line_var):
+                    line_normals, flags, plane_var, line_var, spread_var):
     for slot in touched:
         if counts[slot] > max_count:  # forget some of the past, keep the statistics' shape
             scale = max_count / counts[slot]
@@ -180,6 +183,6 @@ def _refresh_planes(touched, voxel, max_count, min_points, flatness, scans_2d, t
         means[slot, 0] = (ix + 0.5) * voxel + pooled_sums[0] / n
         means[slot, 1] = (iy + 0.5) * voxel + pooled_sums[1] / n
         means[slot, 2] = (iz + 0.5) * voxel + pooled_sums[2] / n
-        flags[slot], plane_var[slot], line_var[slot] = fit_voxel(
+        flags[slot], plane_var[slot], line_var[slot], spread_var[slot] = fit_voxel(
             n, pooled_sums, pooled_squares, pooled_noise, voxel, min_points, flatness, scans_2d,
             normals[slot], line_normals[slot])

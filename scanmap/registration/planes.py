@@ -80,6 +80,7 @@ def eigen_sym3(xx: float, xy: float, xz: float, yy: float, yz: float,
 
 PLANE = 1  # the voxel's points are a plane in 3-D (normal valid)
 LINE = 2   # the voxel is a wall: its horizontal line normal is valid
+BLOB = 4   # 2-D scans, no line (a post, a leg, a corner): its 2-D spread is valid
 _NOISE_SIGMAS = 3.0
 _THICKNESS_FLOOR = 0.002  # m: surfaces are not perfect planes
 
@@ -103,7 +104,8 @@ def accumulate(counts, sums, squares, noise, slot, x, y, z, variance):
 @njit(cache=True, nogil=True)
 def fit_voxel(n, sums, squares, noise, voxel, min_points, flatness, scans_2d, normal,
               line_normal):
-    """Shape of a set of points (a voxel or a neighbourhood): (flags, plane var, wall var).
+    """Shape of a set of points (a voxel or a neighbourhood): (flags, plane var, wall var,
+    spread var).
 
     A shape needs `min_points`, a spread of at least a fifth of the voxel, and a
     thickness its points' range noise explains (at most 3 sigma, `noise` being their
@@ -116,12 +118,18 @@ def fit_voxel(n, sums, squares, noise, voxel, min_points, flatness, scans_2d, no
     3-D: one laser stripe across it (the reference scanner's stripes are 7 deg apart,
     12 cm at 1 m) already fixes its trace. 2-D laser scans (`scans_2d`: all points at one
     height) have no height to test: there a straight footprint is a wall.
+    BLOB (2-D scans only): any other shape. Every return of a horizontal 2-D scan lies on
+    something upright, so points that are no line are still a fixed place in the plane (a
+    post, a table leg, a corner, clutter): `line_normal` and the wall variance then hold
+    the direction and variance of its narrowest spread, the spread variance that of its
+    widest, for a point-to-distribution match.
     """
     flags = 0
     plane_var = 0.0
     line_var = 0.0
+    spread_var = 0.0
     if n < min_points:
-        return flags, plane_var, line_var
+        return flags, plane_var, line_var, spread_var
     mx, my, mz = sums[0] / n, sums[1] / n, sums[2] / n
     xx = squares[0] / n - mx * mx
     xy = squares[1] / n - mx * my
@@ -133,10 +141,14 @@ def fit_voxel(n, sums, squares, noise, voxel, min_points, flatness, scans_2d, no
     if small <= min(flatness * large, max_thickness) and large >= min_spread \
             and (scans_2d or zz >= min_spread):
         flags |= LINE
+    elif scans_2d:
+        flags |= BLOB
+        spread_var = max(large, 0.0)
+    if flags:
         line_normal[0], line_normal[1], line_normal[2] = lx, ly, 0.0
         line_var = max(small, 0.0)
     if scans_2d:
-        return flags, plane_var, line_var
+        return flags, plane_var, line_var, spread_var
     xz = squares[2] / n - mx * mz
     yz = squares[4] / n - my * mz
     l0, l1, _, nx, ny, nz = eigen_sym3(xx, xy, xz, yy, yz, zz)
@@ -144,7 +156,7 @@ def fit_voxel(n, sums, squares, noise, voxel, min_points, flatness, scans_2d, no
         flags |= PLANE
         normal[0], normal[1], normal[2] = nx, ny, nz
         plane_var = max(l0, 0.0)
-    return flags, plane_var, line_var
+    return flags, plane_var, line_var, spread_var
 
 
 SPARSE_REACH = 2  # voxels: a sparse 2-D neighbourhood is widened to this half-width

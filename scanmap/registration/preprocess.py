@@ -24,7 +24,7 @@ from numba import njit
 
 from scanmap.registration.config import RegistrationConfig
 from scanmap.registration.deskew import apply_motion, deskew_twist, motion_at, scan_fraction
-from scanmap.registration.planes import LINE, PLANE, accumulate, fit_voxel, pool_neighbours
+from scanmap.registration.planes import BLOB, LINE, PLANE, accumulate, fit_voxel, pool_neighbours
 from scanmap.registration.voxel_hash import grown, new_table, table_insert, voxel_key
 
 _LIMIT_SIGMAS = 3.0
@@ -36,7 +36,8 @@ class Source:
     """A prepared scan, in base_link at its start pose (float64).
 
     points (M, 3): voxel means that registration matches. normals (M, 3): the surface
-    normal around each (horizontal in planar mode; zero where too few points tell).
+    normal around each (horizontal in planar mode; zero where too few points tell, and
+    on a 2-D scan's blob: a post or a corner, no line).
     variance (M,): their range variance (m^2). cloud (N, 3): every kept point, for the
     map; cloud_variance (N,): theirs.
     """
@@ -49,6 +50,11 @@ class Source:
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
+
+
+def blob_flag(config: RegistrationConfig) -> int:
+    """`planes.BLOB` where `config` matches blobs (2-D scans, planar), else 0."""
+    return BLOB if config.scans_2d and config.match_blobs and config.planar else 0
 
 
 def prepare_source(points: np.ndarray, config: RegistrationConfig,
@@ -77,13 +83,14 @@ def prepare_source(points: np.ndarray, config: RegistrationConfig,
         points, sigma, config.default_range_sigma, times, t0, inv_span, twist,
         config.min_range ** 2, config.max_range ** 2, min_z, config.voxel_size,
         config.min_plane_points, config.flatness, config.scans_2d,
-        LINE if config.planar else PLANE, keys, values)
+        LINE if config.planar else PLANE, blob_flag(config), keys, values)
     return Source(means, normals, variance, cloud, cloud_variance)
 
 
 @njit(cache=True, nogil=True)
 def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, min_r2, max_r2,
-                    min_z, voxel, min_points, flatness, scans_2d, shape_flag, keys, values):
+                    min_z, voxel, min_points, flatness, scans_2d, shape_flag, blobs, keys,
+                    values):
     n = points.shape[0]
     inv_voxel = 1.0 / voxel
     cloud = np.empty((n, 3))
@@ -162,10 +169,10 @@ def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, mi
         pooled, pooled_noise = pool_neighbours(cells[v, 0], cells[v, 1], cells[v, 2], voxel,
                                                keys, values, counts, sums, squares, noise,
                                                pooled_sums, pooled_squares, 0)
-        flags, _, _ = fit_voxel(pooled, pooled_sums, pooled_squares, pooled_noise, voxel,
+        flags, _, _, _ = fit_voxel(pooled, pooled_sums, pooled_squares, pooled_noise, voxel,
                                 min_points, flatness, scans_2d, plane_normal, wall_normal)
-        if pooled < min_points:  # too sparse to judge (far points of a 2-D scan): no normal
-            plane_normal[:] = 0.0
+        if pooled < min_points or flags & blobs:  # too sparse to judge, or a 2-D scan's
+            plane_normal[:] = 0.0  # blob (a post, a corner): matched without a normal
             wall_normal[:] = 0.0
         elif (flags & shape_flag) == 0:
             continue  # near a corner, an edge or in a blob: its mean is on no surface

@@ -52,11 +52,16 @@ def deskew(points: np.ndarray, times: np.ndarray, motion: np.ndarray, t0: float,
 
 
 def correspondences(source, source_normals, source_var, pose, cells, means, normals,
-                    plane_var, usable, voxel, rings_xy, rings_z, max_dist, var_floor, min_cos):
-    """Per source point: (matched map index or -1, residual, weight before the kernel).
+                    plane_var, usable, voxel, rings_xy, rings_z, max_dist, var_floor, min_cos,
+                    blob=None, spread_var=None):
+    """Per source point: a list of (matched map index, normal, residual, weight before the
+    kernel), empty without a match: one residual for a wall (plane), two for a `blob` (its
+    narrowest spread along `normals`, variance `plane_var`; its widest across it,
+    `spread_var`).
 
     cells: (K, 3) integer voxel coordinates of the map entries (means may leave them).
     """
+    blob = np.zeros(len(cells), bool) if blob is None else blob
     index = {tuple(c): i for i, c in enumerate(cells)}
     moved = source @ pose[:3, :3].T + pose[:3, 3]
     turned = source_normals @ pose[:3, :3].T
@@ -68,39 +73,46 @@ def correspondences(source, source_normals, source_var, pose, cells, means, norm
                                    range(1 - rings_xy, rings_xy + 1),
                                    range(1 - rings_z, rings_z + 1)):
             j = index.get(tuple(base + d), -1)
-            if j < 0 or not usable[j] or (u.any() and abs(u @ normals[j]) < min_cos):
+            if j < 0 or not (usable[j] or blob[j]) \
+                    or (usable[j] and u.any() and abs(u @ normals[j]) < min_cos):
                 continue
             d2 = float(np.sum((q - means[j]) ** 2))
             if d2 < best_d2:
                 best, best_d2 = j, d2
-        if best < 0:
-            out.append((-1, np.nan, 0.0))
-            continue
-        r = float(normals[best] @ (q - means[best]))
-        if abs(r) > max_dist:
-            out.append((-1, r, 0.0))
-            continue
-        out.append((best, r, 1.0 / (var + plane_var[best] + var_floor)))
+        matches = []
+        offset = q - means[best] if best >= 0 else None
+        if best >= 0 and usable[best]:
+            parts = [(normals[best], plane_var[best])]
+        elif best >= 0 and np.hypot(*offset[:2]) <= max_dist:
+            n = normals[best]
+            parts = [(n, plane_var[best]), (np.array([-n[1], n[0], 0.0]), spread_var[best])]
+        else:
+            parts = []
+        for n, part_var in parts:
+            r = float(n @ offset)
+            if abs(r) <= max_dist:
+                matches.append((best, n, r, 1.0 / (var + part_var + var_floor)))
+        out.append(matches)
     return out
 
 
 def normal_equations(source, source_normals, source_var, pose, cells, means, normals,
                      plane_var, usable, voxel, rings_xy, rings_z, max_dist, kappa, var_floor,
-                     min_cos):
+                     min_cos, blob=None, spread_var=None):
     """H, g, stats as the kernel computes them, point by point."""
     matches = correspondences(source, source_normals, source_var, pose, cells, means, normals,
                               plane_var, usable, voxel, rings_xy, rings_z, max_dist,
-                              var_floor, min_cos)
-    hessian, gradient, stats = np.zeros((6, 6)), np.zeros(6), np.zeros(4)
-    for p, (j, r, w) in zip(source, matches, strict=True):
-        if j < 0:
-            continue
-        m = pose[:3, :3].T @ normals[j]
-        jac = np.concatenate([m, np.cross(p, m)])
-        w *= (kappa ** 2 / (kappa ** 2 + r ** 2)) ** 2
-        hessian += w * np.outer(jac, jac)
-        gradient += w * jac * r
-        stats += [1.0, r * r, w * r * r, w]
+                              var_floor, min_cos, blob, spread_var)
+    hessian, gradient, stats = np.zeros((6, 6)), np.zeros(6), np.zeros(5)
+    for p, point_matches in zip(source, matches, strict=True):
+        for _, n, r, w in point_matches:
+            m = pose[:3, :3].T @ n
+            jac = np.concatenate([m, np.cross(p, m)])
+            w *= (kappa ** 2 / (kappa ** 2 + r ** 2)) ** 2
+            hessian += w * np.outer(jac, jac)
+            gradient += w * jac * r
+            stats += [1.0, r * r, w * r * r, w, 0.0]
+        stats[4] += bool(point_matches)
     return hessian, gradient, stats
 
 

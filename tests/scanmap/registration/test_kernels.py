@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scanmap.registration.config import RegistrationConfig
 from scanmap.registration.deskew import deskew_points
 from scanmap.registration.icp import evaluate
-from scanmap.registration.local_map import LINE, LocalMap
+from scanmap.registration.local_map import BLOB, LINE, LocalMap
 from scanmap.registration.planes import PLANE, eigen_sym2, eigen_sym3, fit_voxel
 from scanmap.registration.preprocess import prepare_source
 from scanmap.registration.recovery import _shift_scores, distance_to_occupied
@@ -126,7 +126,7 @@ def _stats(points, variance=1e-6):
 def _fit(points, scans_2d=False, variance=1e-6):
     normal, line = np.zeros(3), np.zeros(3)
     n, sums, squares, noise = _stats(points, variance)
-    flags, _, _ = fit_voxel(n, sums, squares, noise, 0.1, 4, 0.1, scans_2d, normal, line)
+    flags, _, _, _ = fit_voxel(n, sums, squares, noise, 0.1, 4, 0.1, scans_2d, normal, line)
     return flags, normal, line
 
 
@@ -148,6 +148,26 @@ def test_fit_tells_walls_floors_and_corners_apart():
     scan_2d = np.column_stack([u[:, 0], 0.3 * u[:, 0], np.full(40, 0.3)])
     assert _fit(scan_2d, scans_2d=False)[0] == 0  # flat: not a wall of a 3-D scan
     assert _fit(scan_2d, scans_2d=True)[0] == LINE
+
+
+def test_a_2d_scan_s_points_that_are_no_line_are_a_blob_with_their_spread():
+    """2-D scans only: a corner (or a post) is still a place in the plane; its narrowest
+    and widest spread are the eigen-pairs of its horizontal covariance."""
+    rng = np.random.default_rng(3)
+    u = rng.uniform(-0.05, 0.05, 40)
+    corner = np.column_stack([np.r_[u[:20], np.zeros(20)], np.r_[np.zeros(20), u[20:]],
+                              np.full(40, 0.3)])
+    line = np.zeros(3)
+    n, sums, squares, noise = _stats(corner)
+    flags, _, narrow, wide = fit_voxel(n, sums, squares, noise, 0.1, 4, 0.1, True,
+                                       np.zeros(3), line)
+    values, vectors = np.linalg.eigh(np.cov(corner[:, :2].T, bias=True))
+    assert flags == BLOB
+    np.testing.assert_allclose([narrow, wide], values, atol=1e-12)
+    assert abs(abs(line[:2] @ vectors[:, 0]) - 1) < 1e-9
+    assert not _fit(corner, scans_2d=False)[0] & BLOB  # never on a 3-D scan
+    wall = np.column_stack([u, 0.3 * u, np.full(40, 0.3)])
+    assert _fit(wall, scans_2d=True)[0] == LINE  # a line is a wall, never a blob
 
 
 def test_fit_thickness_must_be_explained_by_noise():
@@ -283,6 +303,64 @@ def test_normal_equations_match_reference():
             (local_map.flags[:n] & LINE) > 0, 0.1, rings, 1, threshold, threshold / 3,
             config.sigma_floor ** 2, np.cos(config.max_normal_angle))
         assert ours[2][0] == theirs[2][0] > 100  # the same inliers
+        for a, b in zip(ours, theirs, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
+
+
+def corners_and_wall_scan(pose: tuple[float, float, float], rng: np.random.Generator,
+                          beams: int = 720) -> np.ndarray:
+    """A 2-D laser scan (points at 0.3 m, base_link) from `pose` of a wall at y = 3 and
+    five box corners (two 0.15 m faces each): their pooled points are no line (BLOB).
+    Exact ray-segment intersections, 5 mm range noise."""
+    segments = [((-8.0, 3.0), (8.0, 3.0))]
+    for cx, cy in ((1.5, 1.0), (2.5, -1.2), (-1.0, 2.0), (-2.0, -1.5), (0.5, -2.5)):
+        sx, sy = -np.sign(cx) * 0.15, -np.sign(cy) * 0.15  # faces towards the origin
+        segments += [((cx, cy), (cx + sx, cy)), ((cx, cy), (cx, cy + sy))]
+    x, y, yaw = pose
+    angles = np.linspace(-np.pi, np.pi, beams, endpoint=False)
+    d = np.column_stack([np.cos(angles + yaw), np.sin(angles + yaw)])
+    ranges = np.full(beams, np.inf)
+    for a, b in segments:
+        e = np.subtract(b, a)
+        w = np.subtract(a, (x, y))
+        det = d[:, 0] * -e[1] + d[:, 1] * e[0]
+        ok = np.abs(det) > 1e-12
+        det = np.where(ok, det, 1.0)
+        t = (w[0] * -e[1] + w[1] * e[0]) / det
+        u = (d[:, 0] * w[1] - d[:, 1] * w[0]) / det
+        hit = ok & (t > 0) & (u >= 0) & (u <= 1) & (t < ranges)
+        ranges = np.where(hit, t, ranges)
+    ranges = ranges + rng.normal(0.0, 0.005, beams)
+    keep = ranges < 8.0
+    return np.column_stack([np.cos(angles[keep]) * ranges[keep],
+                            np.sin(angles[keep]) * ranges[keep], np.full(keep.sum(), 0.3)])
+
+
+def test_normal_equations_match_reference_with_blobs():
+    """2-D scans of box corners: points matched to a corner's blob give two residuals each
+    (its narrowest and widest spread), the wall's points one."""
+    rng = np.random.default_rng(6)
+    config = RegistrationConfig.for_2d_scans()
+    local_map = LocalMap(scans_2d=True, flatness=config.flatness)
+    for k in range(3):
+        pose = se2_to_pose(0.05 * k, 0.0, 0.0)
+        cloud = prepare_source(corners_and_wall_scan((0.05 * k, 0.0, 0.0), rng), config).cloud
+        local_map.insert(cloud, k + 1, 1e-4, pose)
+    n = len(local_map)
+    assert (local_map.flags[:n] & BLOB).any() and (local_map.flags[:n] & LINE).any()
+    source = prepare_source(corners_and_wall_scan((0.2, 0.03, 0.02), rng), config)
+    cells = np.array([key_coords(k) for k in local_map.voxel_keys[:n]])
+    pose = se2_to_pose(0.21, 0.02, 0.015)
+    for threshold in (0.08, 0.3):
+        ours = evaluate(source, local_map, pose, threshold, config)
+        theirs = reference.normal_equations(
+            source.points, source.normals, source.variance, pose, cells, local_map.means[:n],
+            local_map.line_normals[:n], local_map.line_var[:n],
+            (local_map.flags[:n] & LINE) > 0, 0.1, 1 if threshold <= 0.1 else 2, 1,
+            threshold, threshold / 3, config.sigma_floor ** 2,
+            np.cos(config.max_normal_angle), (local_map.flags[:n] & BLOB) > 0,
+            local_map.spread_var[:n])
+        assert ours[2][0] == theirs[2][0] > ours[2][4] == theirs[2][4] > 20  # blobs: 2 each
         for a, b in zip(ours, theirs, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
 
