@@ -27,6 +27,7 @@ from scanmap.registration.recovery import coarse_search, pose_scores
 from scanmap.registration.result import RegistrationResult, RegistrationStatus
 
 _RECOVERY_GAIN = 0.1  # the coarse search must beat the guess's score by this much
+_ACCEPT_GAIN = 0.05  # and the search's alignment must beat the first one's by this much
 
 
 def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: float,
@@ -36,7 +37,8 @@ def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: 
 
     expected_fitness: the fitness recent scans registered with (0: unknown); below
     `config.recovery_drop` of it, as below `config.recovery_fitness`, a coarse search
-    looks for a better start."""
+    looks for a better start; ICP from there wins if it matches more points and the
+    map's likelihood score (independent of ICP's cost) prefers it."""
     if len(source) < config.min_points:
         return _failure(prior, RegistrationStatus.TOO_FEW_POINTS, len(source),
                         f"{len(source)} source points after filtering, need "
@@ -49,7 +51,9 @@ def register_scan(source: Source, local_map: LocalMap, prior: Prior, threshold: 
         if score > guess_score + _RECOVERY_GAIN:
             second = align(source, local_map, start, prior, threshold, config)
             if second.finite and _fitness(second, source) > _fitness(best, source):
-                best, recovered = second, True
+                found, kept = pose_scores(source, local_map, [second.pose, best.pose], config)
+                if found > kept + _ACCEPT_GAIN:
+                    best, recovered = second, True
     fitness = _fitness(best, source)
     if not best.finite:
         return _failure(prior, RegistrationStatus.DIVERGED, len(source),

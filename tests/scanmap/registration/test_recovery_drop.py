@@ -1,5 +1,5 @@
-"""The coarse search also runs when a scan's fitness falls to half what recent scans had:
-a 2-D laser turning on the spot in a hall, its odometry slipping 8-15 deg at one step."""
+"""The coarse search also runs when a scan's fitness falls well below what recent scans had:
+a 2-D laser turning on the spot in a hall, its odometry slipping 3-15 deg at one step."""
 
 from __future__ import annotations
 
@@ -72,3 +72,16 @@ def test_without_the_drop_rule_the_slip_stays(slip_deg):
     """The same run with recovery_drop 0: the scenario needs the rule."""
     errors, _ = heading_errors(slip_deg, recovery_drop=0.0)
     assert np.all(np.abs(errors[SLIP_AT:]) > 0.5 * slip_deg)
+
+
+
+@pytest.mark.parametrize("slip_deg", [3.0, 4.0])
+def test_the_2d_default_catches_a_slip_whose_fitness_drops_by_a_third(slip_deg):
+    """A 3-4 deg slip leaves a fitness of 0.42-0.51 where recent scans had 0.82: above
+    half of it, so 0.5 keeps the slip (1.5-1.7 deg); the 2-D default (0.8) searches."""
+    default = RegistrationConfig.for_2d_scans().recovery_drop
+    errors, results = heading_errors(slip_deg, recovery_drop=default)
+    assert results[SLIP_AT].recovered
+    assert np.all(np.abs(errors) < 0.2)
+    kept, _ = heading_errors(slip_deg, recovery_drop=0.5)
+    assert abs(kept[SLIP_AT]) > 0.3 * slip_deg
