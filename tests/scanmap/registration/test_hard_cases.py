@@ -18,6 +18,7 @@ from scanmap.registration import (
     register_scan,
 )
 from scanmap.registration.lie import between, pose_exp
+from scanmap.registration.recovery import _search, coarse_search
 from scanmap_driver.errors import RegistrationError
 from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose, wrap_angle
@@ -105,6 +106,21 @@ def test_large_initial_error_is_recovered():
     result, _ = _register(office(), [(0.0, 0.0, 0.3), (0.15, -0.1, 0.35)], truth, guess, rng)
     assert result.status is RegistrationStatus.OK and result.recovered
     assert np.all(np.abs(_error(result, truth)) < [0.005, 0.005, 0.002])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_coarse_search_chooses_as_the_exhaustive_one(seed):
+    """Branch and bound changes how much is scored, never the pose or the scores."""
+    rng = np.random.default_rng(seed)
+    local_map = _map_of(office(), [(0.0, 0.0, 0.3), (0.15, -0.1, 0.35)], rng)
+    scan = make_scan(office(), (0.3, -0.2, 0.4), rng)
+    source = prepare_source(scan.points, CONFIG, scan.range_sigma)
+    guess = se2_to_pose(0.3 + rng.uniform(-0.4, 0.4), -0.2 + rng.uniform(-0.4, 0.4),
+                        0.4 + rng.uniform(-0.4, 0.4))
+    fast = coarse_search(source, local_map, guess, CONFIG)
+    exhaustive = _search(source, local_map, guess, CONFIG, exhaustive=True)
+    np.testing.assert_array_equal(fast[0], exhaustive[0])
+    assert fast[1:] == exhaustive[1:] and fast[1] > fast[2]
 
 
 def test_symmetric_room_keeps_the_nearest_solution():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,7 +14,13 @@ from scanmap.registration.icp import evaluate
 from scanmap.registration.local_map import BLOB, LINE, LocalMap
 from scanmap.registration.planes import PLANE, eigen_sym2, eigen_sym3, fit_voxel
 from scanmap.registration.preprocess import prepare_source
-from scanmap.registration.recovery import _shift_scores, distance_to_occupied
+from scanmap.registration.recovery import (
+    _NEAR_BEST,
+    _block_bounds,
+    _pruned_scores,
+    _shift_scores,
+    distance_to_occupied,
+)
 from scanmap.registration.voxel_hash import (
     COORD_LIMIT,
     build_table,
@@ -373,6 +380,35 @@ def test_shift_scores_match_reference(shifts):
     np.testing.assert_allclose(_shift_scores(grid, cells, shifts),
                                reference.shift_scores(grid, cells, shifts), atol=1e-12)
 
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.data())
+def test_branch_and_bound_scores_every_shift_the_exhaustive_search_would_keep(data):
+    """Each block's bound is at least every score in it, and the pruned scores equal the
+    exhaustive ones wherever given, and are given wherever a score is within _NEAR_BEST of
+    the yaw's best and at least the floor (what the search's choice depends on)."""
+    shape = data.draw(st.tuples(st.integers(1, 40), st.integers(1, 40)))
+    rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
+    grid = rng.uniform(0, 1, shape).astype(np.float32) ** data.draw(st.sampled_from([1, 8]))
+    shifts, block = data.draw(st.integers(0, 7)), data.draw(st.integers(1, 5))
+    cells = rng.integers(-10, 50, (data.draw(st.integers(1, 3)),
+                                   data.draw(st.integers(1, 40)), 2))
+    floor = data.draw(st.floats(0.0, 1.0))
+    pooled = cv2.dilate(grid, np.ones((block, block), np.uint8), anchor=(0, 0),
+                        borderType=cv2.BORDER_CONSTANT, borderValue=0.0)
+    bounds = _block_bounds(pooled, cells, shifts, block)
+    for i in range(len(cells)):
+        exhaustive = _shift_scores(grid, cells[i], shifts)
+        for p in range(bounds.shape[1]):
+            for q in range(bounds.shape[2]):
+                inside = exhaustive[p * block:(p + 1) * block, q * block:(q + 1) * block]
+                assert bounds[i, p, q] >= inside.max()
+        pruned = _pruned_scores(grid, cells[i], shifts, block, bounds[i], floor)
+        given_ = pruned > -np.inf
+        np.testing.assert_array_equal(pruned[given_], exhaustive[given_])
+        needed = (exhaustive >= _NEAR_BEST * exhaustive.max()) & (exhaustive >= floor)
+        assert given_[needed].all()
 
 
 @settings(max_examples=60, deadline=None)
