@@ -13,6 +13,7 @@ degenerate subspace, so the prior (odometry) alone decides there instead of nois
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -22,15 +23,26 @@ class Degeneracy:
     """Eigen-analysis of a scaled Hessian and the projector onto its constrained subspace.
 
     eigenvalues (k,) ascending, in well-aligned points (already divided by the weight of
-    one). directions (d, k): unit columns in the unscaled parameter space, matching
-    eigenvalues. degenerate (k,) bool. scale (k,): the parameter scaling used.
+    one). eigenvectors (k, k): their columns in the scaled space. degenerate (k,) bool.
+    scale (k,): the parameter scaling used.
     """
 
     eigenvalues: np.ndarray
-    eigenvectors: np.ndarray  # scaled space, columns
-    directions: np.ndarray
+    eigenvectors: np.ndarray
     degenerate: np.ndarray
     scale: np.ndarray
+
+    @cached_property
+    def directions(self) -> np.ndarray:
+        """(k, k) unit columns in the unscaled parameter space, matching eigenvalues, each
+        with its largest component positive (stable reports). Only reports need them:
+        Gauss-Newton's projection does not, and it runs every iteration."""
+        directions = self.eigenvectors / self.scale[:, None]
+        directions /= np.linalg.norm(directions, axis=0)
+        signs = np.sign(directions[np.argmax(np.abs(directions), axis=0),
+                                   range(len(self.eigenvalues))])
+        signs[signs == 0] = 1.0
+        return directions * signs
 
     @property
     def degenerate_directions(self) -> np.ndarray:
@@ -62,10 +74,4 @@ def analyse_degeneracy(hessian: np.ndarray, unit_weight: float, lever_arm: float
     scale = np.where(rotation_mask, max(lever_arm, 1e-3), 1.0)
     scaled = hessian / np.outer(scale, scale) / max(unit_weight, 1e-300)
     values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))
-    directions = vectors / scale[:, None]
-    directions /= np.linalg.norm(directions, axis=0)
-    # A sign convention, so reports are stable: largest component positive.
-    signs = np.sign(directions[np.argmax(np.abs(directions), axis=0), range(len(values))])
-    signs[signs == 0] = 1.0
-    return Degeneracy(values, vectors * signs, directions * signs,
-                      values < min_constraint, scale)
+    return Degeneracy(values, vectors, values < min_constraint, scale)

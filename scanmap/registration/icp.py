@@ -231,8 +231,8 @@ def _gauss_newton(source: Source, local_map: LocalMap, pose: np.ndarray, prior: 
     information = prior.information(axes)
     for iterations in range(1, config.max_iterations + 1):
         hessian, gradient, stats = evaluate(source, local_map, pose, threshold, config)
-        degeneracy = _degeneracy(hessian[np.ix_(axes, axes)], stats, lever, axes, config)
-        h, g = degeneracy.project(hessian[np.ix_(axes, axes)], gradient[axes])
+        h = hessian[np.ix_(axes, axes)]
+        h, g = _degeneracy(h, stats, lever, axes, config).project(h, gradient[axes])
         scale = _noise_scale(stats, len(axes))
         h, g = h / scale, g / scale
         error = between(prior.pose, pose)[axes]
