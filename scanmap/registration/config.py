@@ -55,7 +55,8 @@ class RegistrationConfig:
       2-D scans use 0.8 (`for_2d_scans`): with blobs matched, a wrong turn can keep a
       fitness of 0.51 (Belgioioso, scan 143: 12.9 deg off). A search's alignment
       replaces ICP's from the guess only if its fitness is higher and the map's
-      likelihood prefers it; searches run on 10-18% of the scans, about 20 ms each.
+      likelihood prefers it; searches run on 10-18% of the scans, about 6 ms each
+      (`recovery`).
     search_radius, search_angle: half-width of that search (m, rad).
     max_correction, max_rotation: a result moved farther than this from the guess
       (m, rad) is called diverged.

@@ -170,7 +170,7 @@ def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, mi
                                                keys, values, counts, sums, squares, noise,
                                                pooled_sums, pooled_squares, 0)
         flags, _, _, _ = fit_voxel(pooled, pooled_sums, pooled_squares, pooled_noise, voxel,
-                                min_points, flatness, scans_2d, plane_normal, wall_normal)
+                                   min_points, flatness, scans_2d, plane_normal, wall_normal)
         if pooled < min_points or flags & blobs:  # too sparse to judge, or a 2-D scan's
             plane_normal[:] = 0.0  # blob (a post, a corner): matched without a normal
             wall_normal[:] = 0.0
