@@ -4,31 +4,37 @@ Registration perturbs a pose on the right, T' = T * exp(delta), with the decoupl
 exponential exp(rho, phi) = [Exp(phi) | rho]: rho moves the body along its own axes and
 phi turns it about its own origin, so the lever arm of a rotation is a point's range
 (metres), not its distance from a far map origin. Planar poses use (x, y, yaw) = the
-components 0, 1, 5 of the 6-vector.
+components 0, 1, 5 of the 6-vector. `so3_exp` and `so3_log` are compiled (Numba, on float
+arrays): the Gauss-Newton loop of `_kernels` calls them too.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 PLANAR_AXES = np.array([0, 1, 5])  # x, y, yaw inside (x, y, z, roll, pitch, yaw)
 
 
+@njit(cache=True, nogil=True)
 def so3_exp(phi: np.ndarray) -> np.ndarray:
     """3x3 rotation of a rotation vector (Rodrigues)."""
-    phi = np.asarray(phi, dtype=np.float64)
-    angle = float(np.linalg.norm(phi))
+    angle = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    rotation = np.eye(3)
     if angle < 1e-12:
-        return np.eye(3)
-    k = phi / angle
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * (kx @ kx)
+        return rotation
+    kx, ky, kz = phi[0] / angle, phi[1] / angle, phi[2] / angle
+    skew = np.array([[0.0, -kz, ky], [kz, 0.0, -kx], [-ky, kx, 0.0]])
+    return rotation + math.sin(angle) * skew + (1.0 - math.cos(angle)) * (skew @ skew)
 
 
+@njit(cache=True, nogil=True)
 def so3_log(rotation: np.ndarray) -> np.ndarray:
     """Rotation vector of a 3x3 rotation (angle in [0, pi])."""
-    cos_angle = np.clip((np.trace(rotation) - 1.0) / 2.0, -1.0, 1.0)
-    angle = float(np.arccos(cos_angle))
+    trace = rotation[0, 0] + rotation[1, 1] + rotation[2, 2]
+    angle = math.acos(min(max((trace - 1.0) / 2.0, -1.0), 1.0))
     axis = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
                      rotation[1, 0] - rotation[0, 1]])
     if angle < 1e-6:
@@ -37,8 +43,8 @@ def so3_log(rotation: np.ndarray) -> np.ndarray:
         k = np.sqrt(np.maximum((np.diag(rotation) + 1.0) / 2.0, 0.0))
         i = int(np.argmax(k))
         k = (rotation[:, i] + np.eye(3)[:, i]) / (2.0 * k[i])
-        return angle * k / np.linalg.norm(k)
-    return angle / (2.0 * np.sin(angle)) * axis
+        return angle * k / math.sqrt(k[0] * k[0] + k[1] * k[1] + k[2] * k[2])
+    return angle / (2.0 * math.sin(angle)) * axis
 
 
 def pose_exp(delta: np.ndarray) -> np.ndarray:

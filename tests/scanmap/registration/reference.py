@@ -7,6 +7,10 @@ import itertools
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from scanmap.registration.degeneracy import analyse_degeneracy
+from scanmap.registration.icp import evaluate
+from scanmap.registration.lie import between, retract
+
 FACE_NEIGHBOURS = [(0, 0, 0), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1),
                    (0, 0, -1)]
 
@@ -125,3 +129,30 @@ def shift_scores(grid: np.ndarray, cells: np.ndarray, shifts: int) -> np.ndarray
         inside = np.all((moved >= 0) & (moved < grid.shape), axis=1)
         out[a, b] = grid[moved[inside, 0], moved[inside, 1]].sum()
     return out / max(len(cells), 1)
+
+
+def gauss_newton(source, local_map, pose, prior, threshold, config, axes, lever):
+    """(pose, iterations) of `icp._gauss_newton`, step by step in numpy: the normal
+    equations over `axes`, the degenerate directions projected out, the noise scale, the
+    prior, the solve, the update on the right; NaN pose when a step is not finite."""
+    rotations = np.isin(axes, [3, 4, 5])
+    information = prior.information(axes)
+    for iterations in range(1, config.max_iterations + 1):
+        hessian, gradient, stats = evaluate(source, local_map, pose, threshold, config)
+        h = hessian[np.ix_(axes, axes)]
+        degeneracy = analyse_degeneracy(h, stats[3] / max(stats[0], 1.0), lever, rotations,
+                                        config.min_constraint)
+        h, g = degeneracy.project(h, gradient[axes])
+        inliers = int(stats[0])
+        noise = max(1.0, stats[2] / (inliers - len(axes))) if inliers > len(axes) else 1.0
+        error = between(prior.pose, pose)[axes]
+        step = np.linalg.solve(h / noise + information, -(g / noise + information @ error))
+        if not np.isfinite(step).all():
+            return np.full((4, 4), np.nan), iterations
+        delta = np.zeros(6)
+        delta[axes] = step
+        pose = retract(pose, delta)
+        if np.linalg.norm(step[~rotations]) < config.tolerance \
+                and np.linalg.norm(step[rotations]) < config.tolerance:
+            break
+    return pose, iterations

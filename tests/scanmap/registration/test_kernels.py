@@ -10,10 +10,12 @@ from hypothesis import strategies as st
 
 from scanmap.registration.config import RegistrationConfig
 from scanmap.registration.deskew import deskew_points
-from scanmap.registration.icp import evaluate
+from scanmap.registration.icp import ALL_AXES, PLANAR_AXES, _gauss_newton, evaluate
+from scanmap.registration.lie import pose_exp
 from scanmap.registration.local_map import BLOB, LINE, LocalMap
 from scanmap.registration.planes import PLANE, eigen_sym2, eigen_sym3, fit_voxel
 from scanmap.registration.preprocess import prepare_source
+from scanmap.registration.prior import OdometryNoiseConfig, Prior
 from scanmap.registration.recovery import (
     _NEAR_BEST,
     _block_bounds,
@@ -34,7 +36,7 @@ from scanmap.registration.voxel_hash import (
 )
 from scanmap_driver.transforms import make_pose, rot_x, rot_z, se2_to_pose
 from tests.scanmap.registration import reference
-from tests.scanmap.registration.scenes import corridor, make_scan
+from tests.scanmap.registration.scenes import corridor, make_scan, office
 
 coords = st.integers(-COORD_LIMIT + 1, COORD_LIMIT - 1)
 
@@ -370,6 +372,76 @@ def test_normal_equations_match_reference_with_blobs():
         assert ours[2][0] == theirs[2][0] > ours[2][4] == theirs[2][4] > 20  # blobs: 2 each
         for a, b in zip(ours, theirs, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
+
+
+def _gauss_newton_case(case: str):
+    """(source, local map, start, prior, config, axes) of a registration: a 2-D laser
+    scan of a wall and box corners (lines and blobs), a featureless corridor (degenerate
+    along its axis), an office in SE(3) (all six axes)."""
+    rng = np.random.default_rng(7)
+    if case == "2-D blobs":
+        config = RegistrationConfig.for_2d_scans()
+        local_map = LocalMap(scans_2d=True, flatness=config.flatness)
+        for k in range(3):
+            cloud = prepare_source(corners_and_wall_scan((0.05 * k, 0.0, 0.0), rng),
+                                   config).cloud
+            local_map.insert(cloud, k + 1, 1e-4, se2_to_pose(0.05 * k, 0.0, 0.0))
+        source = prepare_source(corners_and_wall_scan((0.2, 0.03, 0.02), rng), config)
+        start = se2_to_pose(0.25, 0.0, 0.0)
+    else:
+        config = RegistrationConfig(planar=case != "SE(3) office")
+        scene = corridor(with_features=False) if case == "featureless corridor" else office()
+        local_map = LocalMap(config.map_voxel_size, config.map_radius, config.map_max_count,
+                             config.min_plane_points, config.flatness)
+        for k, pose in enumerate([(0.0, 0.0, 0.2), (0.15, 0.0, 0.22)]):
+            scan = make_scan(scene, pose, rng)
+            t = se2_to_pose(*pose)
+            local_map.insert(prepare_source(scan.points, config, scan.range_sigma).cloud
+                             @ t[:3, :3].T + t[:3, 3], k + 1)
+        scan = make_scan(scene, (0.3, 0.02, 0.25), rng)
+        source = prepare_source(scan.points, config, scan.range_sigma)
+        start = se2_to_pose(0.34, -0.01, 0.23) @ pose_exp(
+            np.array([0.0, 0.0, 0.02, 0.01, -0.01, 0.0]) * (not config.planar))
+    prior = Prior(start, OdometryNoiseConfig().odometry_covariance(se2_to_pose(0.3, 0, 0)))
+    return source, local_map, start, prior, config, PLANAR_AXES if config.planar else ALL_AXES
+
+
+@pytest.mark.parametrize("case", ["2-D blobs", "featureless corridor", "SE(3) office"])
+def test_gauss_newton_matches_its_reference(case):
+    """The compiled loop takes the reference's steps: the same iterations, the same pose
+    to rounding, through the degenerate projection and the noise scale alike."""
+    source, local_map, start, prior, config, axes = _gauss_newton_case(case)
+    lever = float(np.sqrt(np.mean(np.sum(source.points[:, :2] ** 2, axis=1))))
+    degenerate = []
+    for threshold in (0.08, 0.3):
+        ours = _gauss_newton(source, local_map, start, prior, threshold, config, axes, lever)
+        theirs = reference.gauss_newton(source, local_map, start, prior, threshold, config,
+                                        axes, lever)
+        assert ours[1] == theirs[1] > 1
+        np.testing.assert_allclose(ours[0], theirs[0], rtol=0, atol=1e-10)
+        assert np.abs(ours[0] - start).max() > 1e-3  # it moved
+        hessian, _, stats = evaluate(source, local_map, ours[0], threshold, config)
+        degenerate.append(reference.analyse_degeneracy(
+            hessian[np.ix_(axes, axes)], stats[3] / max(stats[0], 1.0), lever,
+            np.isin(axes, [3, 4, 5]), config.min_constraint).degenerate.any())
+    assert any(degenerate) == (case == "featureless corridor")
+
+
+def test_gauss_newton_reports_a_step_that_is_not_finite():
+    """A prior whose information is NaN: the loop stops at once with a NaN pose, as the
+    reference does, and `align` reports it as not finite."""
+    source, local_map, start, prior, config, axes = _gauss_newton_case("2-D blobs")
+
+    class NanPrior:
+        pose = prior.pose
+
+        @staticmethod
+        def information(axes):
+            return np.full((len(axes), len(axes)), np.nan)
+
+    for run in (_gauss_newton, reference.gauss_newton):
+        pose, iterations = run(source, local_map, start, NanPrior, 0.3, config, axes, 10.0)
+        assert iterations == 1 and np.isnan(pose).all()
 
 
 @pytest.mark.parametrize("shifts", [0, 3])

@@ -139,7 +139,7 @@ def test_lie_helpers_invert_each_other():
         delta = rng.normal(0, 1, 6)
         delta[3:] *= 3.0 / max(np.linalg.norm(delta[3:]), 1.0)  # angle below pi
         np.testing.assert_allclose(pose_log(pose_exp(delta)), delta, atol=1e-9)
-    near_pi = so3_exp([0.0, np.pi - 1e-6, 0.0])
+    near_pi = so3_exp(np.array([0.0, np.pi - 1e-6, 0.0]))
     np.testing.assert_allclose(so3_exp(so3_log(near_pi)), near_pi, atol=1e-9)
     a = pose_exp(rng.normal(0, 1, 6))
     b = retract(a, np.array([0.1, -0.2, 0.05, 0.01, 0.02, -0.3]))
