@@ -60,8 +60,10 @@ def _likelihood_grid(local_map: LocalMap, low: np.ndarray, high: np.ndarray,
         return None
     occupied = np.zeros(tuple(size), dtype=bool)
     occupied[cells[:, 0], cells[:, 1]] = True
-    distance = distance_to_occupied(occupied)
-    return np.exp(-0.5 * distance.astype(np.float64) ** 2), origin
+    likelihood = distance_to_occupied(occupied).astype(np.float64)
+    np.square(likelihood, out=likelihood)  # in place: a grid is some 150,000 cells
+    likelihood *= -0.5
+    return np.exp(likelihood, out=likelihood), origin
 
 
 def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
