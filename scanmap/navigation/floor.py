@@ -273,7 +273,7 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
         return None
     normals, anchors = normals[level], sample[ok][level, 0]
     subset = points[rng.integers(0, len(points), min(len(points), 4000))]
-    support = nk.plane_support(np.ascontiguousarray(subset), np.ascontiguousarray(anchors),
+    support = nk.plane_support(np.ascontiguousarray(subset.T), np.ascontiguousarray(anchors),
                                np.ascontiguousarray(normals), params.plane_tolerance)
     best = int(np.argmax(support))
     normal, offset = normals[best], float(normals[best] @ anchors[best])

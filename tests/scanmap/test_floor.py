@@ -57,7 +57,7 @@ def test_plane_support_matches_its_numpy_reference():
     anchors = points[rng.integers(0, 700, 40)]
     normals = rng.normal(0.0, 1.0, (40, 3))
     normals /= np.linalg.norm(normals, axis=1)[:, None]
-    got = nk.plane_support(points, anchors, normals, 0.03)
+    got = nk.plane_support(np.ascontiguousarray(points.T), anchors, normals, 0.03)
     assert (got == nk.plane_support_reference(points, anchors, normals, 0.03)).all()
     assert got.min() < got.max() <= 700
 
