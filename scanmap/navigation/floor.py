@@ -243,15 +243,18 @@ class Segmentation:
 
 
 def _fit_plane(p: np.ndarray) -> tuple[np.ndarray, float]:
-    """Least-squares plane through points (n, 3): unit normal with z >= 0, and offset.
+    """Least-squares plane through points (n, 3): unit normal with z >= 0, and offset."""
+    _, centre, scatter = nk.plane_moments(np.ascontiguousarray(p.T, dtype=np.float64),
+                                          np.zeros(3), 0.0, np.inf)
+    return _plane_of(centre, scatter)
 
-    The normal is the scatter matrix's least eigenvector: the SVD's last right singular
-    vector, at a 3 x 3 cost instead of n x 3 (the points are centred, so squaring the
-    condition number costs nothing on surfaces metres wide with mm noise).
-    """
-    centre = p.mean(axis=0)
-    d = p - centre
-    normal = np.linalg.eigh(d.T @ d)[1][:, 0]
+
+def _plane_of(centre: np.ndarray, scatter: np.ndarray) -> tuple[np.ndarray, float]:
+    """The plane through `centre` whose normal is the scatter matrix's least eigenvector
+    (the SVD's last right singular vector at a 3 x 3 cost: the points are centred, so
+    squaring the condition number costs nothing on surfaces metres wide with mm noise),
+    turned to z >= 0."""
+    normal = np.linalg.eigh(scatter)[1][:, 0]
     normal = -normal if normal[2] < 0 else normal
     return normal, float(normal @ centre)
 
@@ -272,16 +275,18 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     if not level.any():
         return None
     normals, anchors = normals[level], sample[ok][level, 0]
-    subset = points[rng.integers(0, len(points), min(len(points), 4000))]
-    support = nk.plane_support(np.ascontiguousarray(subset.T), np.ascontiguousarray(anchors),
+    coords = np.ascontiguousarray(points.T, dtype=np.float64)
+    subset = coords[:, rng.integers(0, len(points), min(len(points), 4000))]
+    support = nk.plane_support(subset, np.ascontiguousarray(anchors),
                                np.ascontiguousarray(normals), params.plane_tolerance)
     best = int(np.argmax(support))
     normal, offset = normals[best], float(normals[best] @ anchors[best])
     for _ in range(2):  # refine on all inliers
-        inliers = np.abs(points @ normal - offset) <= params.plane_tolerance
-        if inliers.sum() < 3:
+        count, centre, scatter = nk.plane_moments(coords, normal, offset,
+                                                  params.plane_tolerance)
+        if count < 3:
             return None
-        normal, offset = _fit_plane(points[inliers])
+        normal, offset = _plane_of(centre, scatter)
     if normal[2] < math.cos(params.max_slope):
         return None
     return normal, offset, np.abs(points @ normal - offset) <= params.plane_tolerance

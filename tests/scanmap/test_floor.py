@@ -51,6 +51,24 @@ def test_ransac_refuses_a_steep_plane():
     assert ransac_plane(wall, FloorConfig(), rng) is None
 
 
+def test_plane_moments_match_numpy_on_the_points_near_the_plane():
+    """Count, mean and centred scatter of the points within the tolerance of a plane, as
+    numpy's mask, mean and product give them; NaN and inf points are never counted."""
+    rng = np.random.default_rng(8)
+    points = np.column_stack([rng.uniform(-3.0, 3.0, (900, 2)), rng.normal(0.0, 0.05, 900)])
+    points[:5] = [np.nan, 0.0, 0.0]
+    points[5:8] = [0.0, np.inf, 0.0]
+    normal = np.array([0.004, -0.002, 1.0]) / np.linalg.norm([0.004, -0.002, 1.0])
+    for tolerance in (0.03, np.inf):
+        count, centre, scatter = nk.plane_moments(np.ascontiguousarray(points.T), normal, 0.01,
+                                                  tolerance)
+        near = points[(np.abs(points @ normal - 0.01) <= tolerance) & np.isfinite(points).all(1)]
+        assert count == len(near) > 300 and np.isfinite(near).all()
+        np.testing.assert_allclose(centre, near.mean(axis=0), rtol=0, atol=1e-12)
+        d = near - near.mean(axis=0)
+        np.testing.assert_allclose(scatter, d.T @ d, rtol=1e-10, atol=1e-12)
+
+
 def test_plane_support_matches_its_numpy_reference():
     rng = np.random.default_rng(5)
     points = rng.normal(0.0, 0.05, (700, 3))
