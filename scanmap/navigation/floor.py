@@ -242,21 +242,17 @@ class Segmentation:
         return tuple(self.state.shape)
 
 
-def _fit_plane(p: np.ndarray) -> tuple[np.ndarray, float]:
-    """Least-squares plane through points (n, 3): unit normal with z >= 0, and offset."""
-    _, centre, scatter = nk.plane_moments(np.ascontiguousarray(p.T, dtype=np.float64),
-                                          np.zeros(3), 0.0, np.inf)
-    return _plane_of(centre, scatter)
-
-
-def _plane_of(centre: np.ndarray, scatter: np.ndarray) -> tuple[np.ndarray, float]:
-    """The plane through `centre` whose normal is the scatter matrix's least eigenvector
-    (the SVD's last right singular vector at a 3 x 3 cost: the points are centred, so
-    squaring the condition number costs nothing on surfaces metres wide with mm noise),
-    turned to z >= 0."""
+def _fit_plane(coords: np.ndarray, normal: np.ndarray, offset: float,
+               tolerance: float) -> tuple[int, np.ndarray, float]:
+    """(count, unit normal with z >= 0, offset) of the least-squares plane through the
+    points (coords (3, N)) within `tolerance` of the plane normal . p = offset (all finite
+    points with tolerance inf). The normal is the scatter matrix's least eigenvector: the
+    SVD's last right singular vector at a 3 x 3 cost (the points are centred, so squaring
+    the condition number costs nothing on surfaces metres wide with mm noise)."""
+    count, centre, scatter = nk.plane_moments(coords, normal, offset, tolerance)
     normal = np.linalg.eigh(scatter)[1][:, 0]
     normal = -normal if normal[2] < 0 else normal
-    return normal, float(normal @ centre)
+    return count, normal, float(normal @ centre)
 
 
 def ransac_plane(points: np.ndarray, params: FloorConfig,
@@ -282,11 +278,9 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     best = int(np.argmax(support))
     normal, offset = normals[best], float(normals[best] @ anchors[best])
     for _ in range(2):  # refine on all inliers
-        count, centre, scatter = nk.plane_moments(coords, normal, offset,
-                                                  params.plane_tolerance)
+        count, normal, offset = _fit_plane(coords, normal, offset, params.plane_tolerance)
         if count < 3:
             return None
-        normal, offset = _plane_of(centre, scatter)
     if normal[2] < math.cos(params.max_slope):
         return None
     return normal, offset, np.abs(points @ normal - offset) <= params.plane_tolerance

@@ -238,7 +238,7 @@ def test_the_plane_fit_is_the_svd_least_squares_plane(tilt, azimuth, far, noise,
     slope = math.tan(tilt) * np.array([math.cos(azimuth), math.sin(azimuth)])
     z = 0.3 + (xy - far) @ slope + rng.normal(0.0, noise, 400)
     p = np.column_stack([xy, z])
-    normal, offset = _fit_plane(p)
+    _, normal, offset = _fit_plane(np.ascontiguousarray(p.T), np.zeros(3), 0.0, np.inf)
     centre = p.mean(axis=0)
     reference = np.linalg.svd(p - centre, full_matrices=False)[2][-1]
     reference = -reference if reference[2] < 0 else reference
