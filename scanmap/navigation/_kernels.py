@@ -209,6 +209,92 @@ def ring_heights_reference(labels: np.ndarray, count: int, is_floor: np.ndarray,
     return low, high
 
 
+@njit(cache=True, nogil=True)
+def floor_gaps(labels: np.ndarray, boxes: np.ndarray, small: np.ndarray,
+               near_drop: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
+               heights: np.ndarray, step: float) -> np.ndarray:
+    """Per label, whether its patch is a gap between floor samples: `small` (its box, x y
+    w h, lies 2 cells or more inside the grid), no cell of it in `near_drop`, and the cells
+    within its box grown by 2 hold floor, no hit off the floor, and floor heights
+    differing by at most `step` (NaN among them: not a gap). `floor_gaps_reference` is
+    the plain version."""
+    out = np.zeros(small.shape[0], np.bool_)
+    for label in range(1, small.shape[0]):
+        if not small[label]:
+            continue
+        x0, y0, w, h = boxes[label, 0], boxes[label, 1], boxes[label, 2], boxes[label, 3]
+        by_drop = False
+        for y in range(y0, y0 + h):
+            for x in range(x0, x0 + w):
+                by_drop |= labels[y, x] == label and near_drop[y, x]
+        if by_drop:
+            continue
+        floor, stray, odd = False, False, False
+        low, high = np.float32(np.inf), np.float32(-np.inf)
+        for y in range(y0 - 2, y0 + h + 2):
+            for x in range(x0 - 2, x0 + w + 2):
+                if is_floor[y, x]:
+                    floor = True
+                    z = heights[y, x]
+                    odd |= np.isnan(z)
+                    low, high = min(low, z), max(high, z)
+                elif nlev[y, x] > 0:
+                    stray = True
+        out[label] = floor and not stray and not odd and high - low <= step
+    return out
+
+
+def floor_gaps_reference(labels: np.ndarray, boxes: np.ndarray, small: np.ndarray,
+                         near_drop: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
+                         heights: np.ndarray, step: float) -> np.ndarray:
+    """`floor_gaps` in numpy, for tests."""
+    out = np.zeros(small.shape[0], bool)
+    for label in np.flatnonzero(small):
+        x, y, w, h = map(int, boxes[label])
+        if near_drop[y:y + h, x:x + w][labels[y:y + h, x:x + w] == label].any():
+            continue
+        around = (slice(y - 2, y + h + 2), slice(x - 2, x + w + 2))
+        floor = is_floor[around]
+        lying = heights[around][floor]
+        out[label] = floor.any() and not ((nlev[around] > 0) & ~floor).any() \
+            and lying.max() - lying.min() <= step
+    return out
+
+
+@njit(cache=True, nogil=True)
+def touching_floor(heights: np.ndarray, is_floor: np.ndarray, cells: np.ndarray,
+                   max_step: float) -> np.ndarray:
+    """Those of `cells` with a floor 8-neighbour at most max_step from them in height (NaN
+    heights never are): one step of the floor's growth."""
+    ny, nx = heights.shape
+    out = np.zeros((ny, nx), np.bool_)
+    for y in range(ny):
+        for x in range(nx):
+            if not cells[y, x]:
+                continue
+            h = heights[y, x]
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if (yy != y or xx != x) and is_floor[yy, xx] \
+                            and abs(heights[yy, xx] - h) <= max_step:
+                        out[y, x] = True
+    return out
+
+
+def touching_floor_reference(heights: np.ndarray, is_floor: np.ndarray, cells: np.ndarray,
+                             max_step: float) -> np.ndarray:
+    """`touching_floor` in numpy, for tests."""
+    ny, nx = heights.shape
+    floor = np.pad(np.where(is_floor, heights, np.nan), 1, constant_values=np.nan)
+    out = np.zeros((ny, nx), bool)
+    with np.errstate(invalid="ignore"):
+        for dy in range(3):
+            for dx in range(3):
+                if dy != 1 or dx != 1:
+                    out |= np.abs(floor[dy:dy + ny, dx:dx + nx] - heights) <= max_step
+    return out & cells
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _off_floor(known: np.ndarray, hit: np.ndarray, y: int, x: int) -> bool:
     """A hit that is not known floor at (y, x) (False outside the grid)."""
@@ -448,13 +534,14 @@ def below_floor(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _popcount(v: np.uint64) -> int:
-    count = 0
-    while v:
-        v &= v - np.uint64(1)
-        count += 1
-    return count
+    """Set bits of v, by adding neighbouring bit counts in parallel (a dozen operations
+    where a loop over the bits of a robot band's mask takes forty)."""
+    v = v - ((v >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    v = (v & np.uint64(0x3333333333333333)) + ((v >> np.uint64(2)) & np.uint64(0x3333333333333333))
+    v = (v + (v >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return int((v * np.uint64(0x0101010101010101)) >> np.uint64(56))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -481,6 +568,38 @@ def _highest_bit(bits: np.uint64) -> int:
     while not (bits >> np.uint64(high)) & np.uint64(1):
         high -= 1
     return high
+
+
+@njit(cache=True, nogil=True)
+def lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:
+    """Bottom height (m) of the lowest height bin rays saw free in each cell; -inf where
+    none was (such a cell counts as probed, and cannot be FREE: its band is unseen)."""
+    out = np.full(seen.shape, -np.inf)
+    for y in range(seen.shape[0]):
+        for x in range(seen.shape[1]):
+            if seen[y, x]:
+                out[y, x] = z_min + mask_dz * _lowest_bit(seen[y, x])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def pooled_bits(seen: np.ndarray, reach: int) -> np.ndarray:
+    """The height bins seen free in each cell or a cell within `reach` cells of it (the OR
+    over the square, nothing beyond the grid's edge)."""
+    ny, nx = seen.shape
+    rows = np.zeros((ny, nx), np.uint64)
+    for y in range(ny):  # the OR along each row, then along each column of that
+        for x in range(nx):
+            bits = np.uint64(0)
+            for xx in range(max(x - reach, 0), min(x + reach + 1, nx)):
+                bits |= seen[y, xx]
+            rows[y, x] = bits
+    out = np.zeros((ny, nx), np.uint64)
+    for y in range(ny):
+        for yy in range(max(y - reach, 0), min(y + reach + 1, ny)):
+            for x in range(nx):
+                out[y, x] |= rows[yy, x]
+    return out
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -641,6 +760,10 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
         for x in range(nx):
             gaps[y, x] = unseen[y, x] & _above_lowest_seen(seen[y, x])
     overhang = _spread_overhangs(_plates(hanging, occupied), gaps, state, reach)
+    widened = np.empty((ny, nx), np.uint64)  # each cell's obstacles widened, once per cell
+    for y in range(ny):
+        for x in range(nx):
+            widened[y, x] = _widen(occupied[y, x])
     for y in range(ny):
         for x in range(nx):
             f = floor_height[y, x]
@@ -650,7 +773,7 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
             suspect = overhang[y, x]
             for yy in range(max(y - 1, 0), min(y + 2, ny)):
                 for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                    suspect |= _widen(occupied[yy, xx])
+                    suspect |= widened[yy, xx]
             covered[y, x] = unseen[y, x] & overhang[y, x] != 0
             if _popcount(band & counted[y, x]) >= max(coverage * _popcount(band), 1.0) \
                     and band & seen[y, x] != 0 and unseen[y, x] & suspect == 0 \

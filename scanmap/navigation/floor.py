@@ -334,7 +334,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
         is_floor = nk.grow_region(level, seeds, robot.step_height)
-        joined = _touching_floor(cand, is_floor, bridges, robot.step_height)
+        joined = nk.touching_floor(cand, is_floor, bridges, robot.step_height)
         is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
         bridges &= ~joined
         fy, fx = np.nonzero(is_floor)
@@ -345,8 +345,8 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         fill = ~is_floor & (distance * res <= params.fill_radius)
         floor_height[fill] = floor_height.reshape(-1)[nearest[fill]]
     if planes:  # farther out, the largest floor plane
-        far = np.isnan(floor_height)
-        floor_height[far] = planes[0].height_at(*np.meshgrid(xs, ys))[far]
+        fy, fx = np.nonzero(np.isnan(floor_height))
+        floor_height[fy, fx] = planes[0].height_at(xs[fx], ys[fy])
     assumed = np.zeros((ny, nx), bool)
     if fallback_floor is not None:  # the caller vouches for the floor there
         assumed = np.isnan(floor_height)
@@ -377,7 +377,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
     # (not the foot of a surface a ray ended on) the laser should have lit it
-    probed = _lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
+    probed = nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
         <= floor_height + params.floor_probe
     bare = ~morphology.max_filter(layers.nlev > 0, 3)
     holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
@@ -422,7 +422,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     if pool:  # known floor off a drop-off's rim: the coverage over it and its neighbours
         known = morphology.dilate(is_floor) | holes | lines
         known &= ~morphology.dilate(drop)
-        counted = np.where(known, _pooled(layers.seen, pool), layers.seen)
+        counted = np.where(known, nk.pooled_bits(layers.seen, pool), layers.seen)
     nk.classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height,
                      robot.step_height, robot.height, layers.z_min, layers.mask_dz,
                      params.min_coverage, round(params.overhang_reach / res),
@@ -486,13 +486,6 @@ def _reaching_below(layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray
             & (layers.levels[:, :, 0, gk.LO] < lowest - depth)
 
 
-def _lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:
-    """Bottom height (m) of the lowest height bin rays saw free in each cell (inf: none)."""
-    low = seen & (~seen + np.uint64(1))  # the lowest set bit
-    with np.errstate(divide="ignore"):
-        return z_min + mask_dz * np.log2(low.astype(np.float64))
-
-
 def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
               floor_height: np.ndarray, drop: np.ndarray, size: int,
               step: float) -> np.ndarray:
@@ -500,46 +493,9 @@ def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     at the window's edge nor next to a drop-off, whose hits within two cells are all floor
     with heights differing by at most `step`: gaps between the laser's samples."""
     labels, boxes, ok = _small_patches(bare, size, margin=2)
-    out = np.zeros(bare.shape, bool)
-    near_drop = morphology.dilate(drop)
-    for index in np.flatnonzero(ok):
-        rows, cols = morphology.box_slices(boxes[index])
-        y0, y1, x0, x1 = rows.start - 2, rows.stop + 2, cols.start - 2, cols.stop + 2
-        patch = labels[rows, cols] == index
-        if near_drop[rows, cols][patch].any():
-            continue
-        hits = nlev[y0:y1, x0:x1] > 0
-        floor = is_floor[y0:y1, x0:x1]
-        heights = floor_height[y0:y1, x0:x1][floor]
-        if floor.any() and not (hits & ~floor).any() and heights.max() - heights.min() <= step:
-            out[rows, cols] |= patch
-    return out
-
-
-def _pooled(seen: np.ndarray, reach: int) -> np.ndarray:
-    """The height bins seen free in each cell or a cell within `reach` cells of it."""
-    ny, nx = seen.shape
-    padded = np.pad(seen, reach)
-    out = seen.copy()
-    for dy in range(2 * reach + 1):
-        for dx in range(2 * reach + 1):
-            out |= padded[dy:dy + ny, dx:dx + nx]
-    return out
-
-
-def _touching_floor(heights: np.ndarray, is_floor: np.ndarray, cells: np.ndarray,
-                    max_step: float) -> np.ndarray:
-    """Those of `cells` with a floor 8-neighbour at most max_step from them in height: one
-    step of the floor's growth."""
-    ny, nx = heights.shape
-    floor = np.pad(np.where(is_floor, heights, np.nan), 1, constant_values=np.nan)
-    out = np.zeros((ny, nx), bool)
-    with np.errstate(invalid="ignore"):
-        for dy in range(3):
-            for dx in range(3):
-                if dy != 1 or dx != 1:
-                    out |= np.abs(floor[dy:dy + ny, dx:dx + nx] - heights) <= max_step
-    return out & cells
+    gaps = nk.floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
+                         floor_height, step)
+    return gaps[labels]
 
 
 def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:

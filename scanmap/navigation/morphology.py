@@ -1,17 +1,19 @@
-"""Binary morphology and connected components on cell masks, by OpenCV.
+"""Binary morphology and connected components on cell masks, by OpenCV and Numba.
 
 The segmentation needs a few of scipy.ndimage's operations on small boolean grids:
 dilation by the 3 x 3 square (also geodesic: grown only inside a mask, a step at a time),
 square minimum and maximum filters, and 8-connected components with their bounding
-boxes. OpenCV's versions of these give the same results (tested against ndimage), cost a
-fraction of the time on these grids, and keep scipy out of a command's start (importing
-scipy.ndimage takes 0.2 s, with scipy.special that it loads).
+boxes. OpenCV's versions of these, and a breadth-first search for the geodesic dilation
+(one pass instead of a dilation and a copy per step), give the same results (tested
+against ndimage), cost a fraction of the time on these grids, and keep scipy out of a
+command's start (importing scipy.ndimage takes 0.2 s, with scipy.special that it loads).
 """
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
+from numba import njit
 
 _SQUARE3 = np.ones((3, 3), np.uint8)
 
@@ -20,18 +22,45 @@ def dilate(mask: np.ndarray, iterations: int = 1, within: np.ndarray | None = No
            ) -> np.ndarray:
     """`mask` dilated `iterations` times by the 3 x 3 square (nothing beyond the array's
     edge). With `within`, each step changes only cells of `within`; the others keep their
-    value in `mask` (ndimage.binary_dilation's `mask`)."""
-    source = np.ascontiguousarray(mask, dtype=np.uint8)
+    value in `mask` (ndimage.binary_dilation's `mask`): a breadth-first search from the
+    mask through `within`, `iterations` steps deep (`geodesic_dilate`)."""
     if within is None:
+        source = np.ascontiguousarray(mask, dtype=np.uint8)
         return cv2.dilate(source, _SQUARE3, iterations=max(iterations, 0)).astype(bool)
-    inside = np.asarray(within, dtype=bool)
-    out = source
-    for _ in range(max(iterations, 0)):
-        grown = np.where(inside, cv2.dilate(out, _SQUARE3), source)
-        if np.array_equal(grown, out):
-            break
-        out = grown
-    return out.astype(bool)
+    return geodesic_dilate(np.ascontiguousarray(mask, dtype=np.bool_),
+                           np.ascontiguousarray(within, dtype=np.bool_), max(iterations, 0))
+
+
+@njit(cache=True, nogil=True)
+def geodesic_dilate(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndarray:
+    """The cells of `mask`, and those of `within` at most `steps` 8-connected moves from
+    it through cells of `within` (`dilate` with `within`)."""
+    ny, nx = mask.shape
+    out = mask.copy()
+    queue = np.empty(ny * nx, np.int64)
+    depth = np.zeros(ny * nx, np.int32)
+    tail = 0
+    for y in range(ny):
+        for x in range(nx):
+            if mask[y, x]:
+                queue[tail] = y * nx + x
+                tail += 1
+    head = 0
+    while head < tail:
+        cell = queue[head]
+        head += 1
+        d = depth[cell]
+        if d >= steps:
+            continue
+        y, x = cell // nx, cell % nx
+        for yy in range(max(y - 1, 0), min(y + 2, ny)):
+            for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                if within[yy, xx] and not out[yy, xx]:
+                    out[yy, xx] = True
+                    depth[yy * nx + xx] = d + 1
+                    queue[tail] = yy * nx + xx
+                    tail += 1
+    return out
 
 
 def max_filter(mask: np.ndarray, size: int) -> np.ndarray:

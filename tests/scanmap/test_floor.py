@@ -121,6 +121,17 @@ def test_floor_candidates_match_a_numpy_reference():
     np.testing.assert_allclose(got, expected, equal_nan=True, rtol=1e-6)
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 15), st.integers(1, 15))
+def test_touching_floor_matches_a_numpy_reference(seed, ny, nx):
+    rng = np.random.default_rng(seed)
+    heights = rng.normal(0.0, 0.05, (ny, nx)).astype(np.float32)
+    heights[rng.random((ny, nx)) < 0.2] = np.nan
+    floor, cells = rng.random((ny, nx)) < 0.5, rng.random((ny, nx)) < 0.5
+    got = nk.touching_floor(heights, floor, cells, 0.05)
+    assert np.array_equal(got, nk.touching_floor_reference(heights, floor, cells, 0.05))
+
+
 def test_grow_region_matches_a_breadth_first_reference():
     rng = np.random.default_rng(4)
     heights = np.cumsum(rng.normal(0, 0.03, (25, 25)), axis=1).astype(np.float32)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import ndimage
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
@@ -50,11 +52,55 @@ def test_a_gap_is_not_floor_when_its_surroundings_are_not_consistent_floor(spoil
 def test_pooled_seen_spreads_each_bin_to_the_neighbours_only():
     seen = np.zeros((7, 7), np.uint64)
     seen[3, 3] = np.uint64(1 << 20)
-    pooled = floor_module._pooled(seen, 1)
+    pooled = nk.pooled_bits(seen, 1)
     expected = np.zeros((7, 7), bool)
     expected[2:5, 2:5] = True
     assert ((pooled == np.uint64(1 << 20)) == expected).all()
     assert (pooled[~expected] == 0).all()
+
+
+def pooled_reference(seen: np.ndarray, reach: int) -> np.ndarray:
+    """The OR of each cell's (2 reach + 1)^2 square, by shifted copies of a padded grid."""
+    ny, nx = seen.shape
+    padded = np.pad(seen, reach)
+    out = seen.copy()
+    for dy in range(2 * reach + 1):
+        for dx in range(2 * reach + 1):
+            out |= padded[dy:dy + ny, dx:dx + nx]
+    return out
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 12), st.integers(1, 12), st.integers(0, 3))
+def test_pooled_bits_and_lowest_seen_match_plain_numpy(seed, ny, nx, reach):
+    rng = np.random.default_rng(seed)
+    bits = rng.integers(0, 64, (ny, nx)).astype(np.uint64)
+    seen = np.where(rng.random((ny, nx)) < 0.3, np.uint64(0), np.uint64(1) << bits)
+    seen |= np.where(rng.random((ny, nx)) < 0.5, np.uint64(1) << np.uint64(63), np.uint64(0))
+    assert np.array_equal(nk.pooled_bits(seen, reach), pooled_reference(seen, reach))
+    low = seen & (~seen + np.uint64(1))  # the lowest set bit, 0 for none
+    with np.errstate(divide="ignore"):
+        expected = -0.35 + 0.025 * np.log2(low.astype(np.float64))
+    assert np.array_equal(nk.lowest_seen(seen, -0.35, 0.025), expected)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_floor_gaps_match_their_plain_reference(seed):
+    """Random bare patches among floor of random heights (some NaN), stray hits and
+    drop-offs: the kernel's verdict per patch is the plain loop's."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(6, 30))
+    nlev = (rng.random((n, n)) < 0.7).astype(np.uint8)
+    is_floor = (nlev > 0) & (rng.random((n, n)) < 0.95)
+    heights = rng.normal(0.0, 0.02, (n, n)).astype(np.float32)
+    heights[rng.random((n, n)) < 0.01] = np.nan
+    bare = ~ndimage.maximum_filter(nlev > 0, 3)
+    drop = rng.random((n, n)) < 0.02
+    labels, boxes, ok = floor_module._small_patches(bare, 4, margin=2)
+    near_drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool))
+    args = (labels, boxes, ok, near_drop, nlev, is_floor, heights, STEP)
+    assert np.array_equal(nk.floor_gaps(*args), nk.floor_gaps_reference(*args))
 
 
 @pytest.mark.parametrize("pooled", [False, True])
@@ -104,7 +150,7 @@ def test_without_pooling_the_coverage_rule_is_the_kernels(monkeypatch):
         grid.insert(points, np.array(origin), 1.0)
     layers = grid.layers((-2.0, -2.0, 2.0, 2.0))
     kernel = segment(layers, params=FloorConfig(coverage_reach=0.0))
-    monkeypatch.setattr(floor_module, "_pooled", lambda seen, reach: seen)
+    monkeypatch.setattr(nk, "pooled_bits", lambda seen, reach: seen)
     numpy_rule = segment(layers)
     assert (kernel.state == numpy_rule.state).all()
     assert (kernel.state == floor_module.FREE).sum() > 100
