@@ -42,7 +42,11 @@ class GridConfig:
     merge_gap: hits closer than this in height join one level (m).
     clear_margin: the last metres of a ray before its hit clear nothing.
     protect: a level hit in a scan keeps, in that scan, the space within this height of
-    its hits from being cleared (m).
+    its hits from being cleared (m). Keep it below the robot's step height (5 cm by
+    default) by more than the floor's noise: the floor where a person stood, merged with
+    the foot into one level and hit on the floor in every scan, is cut down by later
+    rays only to this scan's floor hits plus `protect`, and must end below the robot's
+    band (at 5 cm such cells stayed obstacles for tens of scans in the people scene).
     static_scans, pass_radius: a level hit in at least `static_scans` scans (about 20 s
     at the scanner's 2 s a turn: a wall, furniture) is cleared only by rays that pass
     within `pass_radius` (m, x-y) of the level's mean hit. Where a face cuts a cell, rays
@@ -64,7 +68,7 @@ class GridConfig:
     mask_dz: float = 0.025
     merge_gap: float = 0.10
     clear_margin: float = 0.1
-    protect: float = 0.05
+    protect: float = 0.03
     pass_radius: float = 0.0175
     static_scans: int = 10
     max_range: float = 20.0
