@@ -268,16 +268,14 @@ def touching_floor(heights: np.ndarray, is_floor: np.ndarray, cells: np.ndarray,
     heights never are): one step of the floor's growth."""
     ny, nx = heights.shape
     out = np.zeros((ny, nx), np.bool_)
-    for y in range(ny):
-        for x in range(nx):
-            if not cells[y, x]:
+    for dy in range(-1, 2):  # one neighbour direction at a time: contiguous inner loops
+        for dx in range(-1, 2):
+            if dy == 0 and dx == 0:
                 continue
-            h = heights[y, x]
-            for yy in range(max(y - 1, 0), min(y + 2, ny)):
-                for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                    if (yy != y or xx != x) and is_floor[yy, xx] \
-                            and abs(heights[yy, xx] - h) <= max_step:
-                        out[y, x] = True
+            for y in range(max(-dy, 0), min(ny - dy, ny)):
+                for x in range(max(-dx, 0), min(nx - dx, nx)):
+                    out[y, x] |= cells[y, x] and is_floor[y + dy, x + dx] \
+                        and abs(heights[y + dy, x + dx] - heights[y, x]) <= max_step
     return out
 
 
