@@ -43,10 +43,11 @@ within ceil(l_max / (max_misses * l_miss)) scans once it has gone.
 
 Memory layout (flat, for speed): cell `off = (slot << 2s) | (row << s) | col` with
 s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, bundle key,
-bundle mask)`, where bit b of a mask covers z_min + [b, b+1) * mask_dz; `nlev[off]`
-levels in use; level k of the cell is record `off * K + k` of lev_f (lo, hi, log-odds,
-mean hit x, y offset from the cell centre, this scan's hit range), lev_n (hits, passes,
-scan stamp, scans that hit it) and lev_flag.
+bundle mask, scans whose rays reached it)`, where bit b of a mask covers
+z_min + [b, b+1) * mask_dz; `nlev[off]` levels in use; level k of the cell is record
+`off * K + k` of lev_f (lo, hi, log-odds, mean hit x, y offset from the cell centre,
+this scan's hit range), lev_n (hits, passes, scan stamp, scans that hit it) and
+lev_flag.
 """
 
 from __future__ import annotations
@@ -62,9 +63,10 @@ N_FLOAT_FIELDS = 7
 HITS, PASSES, STAMP, SCANS = 0, 1, 2, 3
 N_INT_FIELDS = 4
 HIT_FLAG = 0x80  # lev_flag bit: hit in scan `stamp`; the low bits count its misses
-# Fields of cells[off]: observed-height mask, last scan id, and the ray-bundle scratch.
-SEEN, SCAN, VKEY, VMASK = range(4)
-N_CELL_FIELDS = 4
+# Fields of cells[off]: observed-height mask, last scan id, the ray-bundle scratch, and
+# the scans whose rays reached the cell (not saved: how strongly a submap saw it free).
+SEEN, SCAN, VKEY, VMASK, VISITS = range(5)
+N_CELL_FIELDS = 5
 
 # Point classes of classify_points.
 POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO_FAR = range(5)
@@ -244,27 +246,65 @@ def _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels) -> None:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _level_for(lev_f, base, n, lo, hi, gap) -> int:
+    """The first of the n levels from record base within `gap` of heights [lo, hi], or
+    -1."""
+    for j in range(n):
+        if lev_f[base + j, LO] - gap <= hi and lo <= lev_f[base + j, HI] + gap:
+            return j
+    return -1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _nearest_level(lev_f, base, n, lo, hi) -> int:
+    """The one of the n levels from record base nearest to heights [lo, hi]."""
+    best, k = np.inf, 0
+    for j in range(n):
+        d = max(lev_f[base + j, LO] - hi, lo - lev_f[base + j, HI])
+        if d < best:
+            best, k = d, j
+    return k
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _open_level(lev_f, lev_n, lev_flag, nlev, off, z, levels) -> int:
+    """Make room in cell off for a new level at height z, in height order; returns its
+    index (the caller fills the record)."""
+    n = np.int64(nlev[off])
+    base = off * levels
+    k = 0
+    while k < n and lev_f[base + k, LO] < z:
+        k += 1
+    for j in range(base + n, base + k, -1):
+        lev_f[j] = lev_f[j - 1]
+        lev_n[j] = lev_n[j - 1]
+        lev_flag[j] = lev_flag[j - 1]
+    nlev[off] = n + 1
+    return k
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _merge_grown(lev_f, lev_n, lev_flag, nlev, off, k, gap, levels) -> None:
+    """Merge level k of cell off, which just grew, with its neighbours within `gap`."""
+    base = off * levels
+    while k + 1 < np.int64(nlev[off]) and lev_f[base + k + 1, LO] - gap <= lev_f[base + k, HI]:
+        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels)
+    while k > 0 and lev_f[base + k - 1, HI] + gap >= lev_f[base + k, LO]:
+        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k - 1, levels)
+        k -= 1
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> bool:
     """Record a hit at height z and offset (ox, oy) from the centre of cell off; True when
     it started a new level."""
     gap = fp[FP_GAP]
     n = np.int64(nlev[off])
     base = off * levels
-    k = -1
-    for j in range(n):
-        if lev_f[base + j, LO] - gap <= z <= lev_f[base + j, HI] + gap:
-            k = j
-            break
+    k = _level_for(lev_f, base, n, z, z, gap)
     fresh = k < 0 and n < levels
     if fresh:
-        k = 0
-        while k < n and lev_f[base + k, LO] < z:
-            k += 1
-        for j in range(base + n, base + k, -1):
-            lev_f[j] = lev_f[j - 1]
-            lev_n[j] = lev_n[j - 1]
-            lev_flag[j] = lev_flag[j - 1]
-        nlev[off] = n + 1
+        k = _open_level(lev_f, lev_n, lev_flag, nlev, off, z, levels)
         li = base + k
         lev_f[li, LO] = z
         lev_f[li, HI] = z
@@ -277,12 +317,7 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
         lev_n[li, SCANS] = 0
         lev_flag[li] = 0
     elif k < 0:  # all K slots taken: the nearest level absorbs the hit (fills the gap)
-        best = np.inf
-        for m in range(n):
-            d = max(lev_f[base + m, LO] - z, z - lev_f[base + m, HI])
-            if d < best:
-                best = d
-                k = m
+        k = _nearest_level(lev_f, base, n, z, z)
     li = base + k
     grew = fresh or z < lev_f[li, LO] or z > lev_f[li, HI]
     lev_f[li, LO] = min(lev_f[li, LO], z)
@@ -302,13 +337,8 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
     else:
         lev_f[li, SLO] = min(lev_f[li, SLO], z)
         lev_f[li, SHI] = max(lev_f[li, SHI], z)
-    # Only growth merges: the gap a ray opened by splitting a level stays open.
-    while grew and k + 1 < np.int64(nlev[off]) \
-            and lev_f[base + k + 1, LO] - gap <= lev_f[base + k, HI]:
-        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels)
-    while grew and k > 0 and lev_f[base + k - 1, HI] + gap >= lev_f[base + k, LO]:
-        _merge_down(lev_f, lev_n, lev_flag, nlev, off, k - 1, levels)
-        k -= 1
+    if grew:  # only growth merges: the gap a ray opened by splitting a level stays open
+        _merge_grown(lev_f, lev_n, lev_flag, nlev, off, k, gap, levels)
     return fresh
 
 
@@ -527,6 +557,8 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
             fresh[n_fresh] = off
             fresh_z[n_fresh] = z
             n_fresh += 1
+        if cells[off, SCAN] != scan64:
+            cells[off, VISITS] += np.uint64(1)
         cells[off, SCAN] = scan64
         n_hits += 1
     n_cleared = 0
@@ -572,6 +604,8 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                         cells[off, VMASK] = 0
                     cells[off, VMASK] |= bits
                     cells[off, SEEN] |= bits
+                    if cells[off, SCAN] != scan64:
+                        cells[off, VISITS] += np.uint64(1)
                     cells[off, SCAN] = scan64
                     if nlev[off] > 0 and t_out > t_margin:
                         t_clear = max(t_in, t_margin)

@@ -14,8 +14,11 @@ Loop closure (`MapperConfig.loop_closure.enabled`): each registered scan also go
 thread. Poses are registration's poses moved by the newest correction. When an
 optimisation has finished, the next `add` starts rebuilding the grid in the background
 from each fused scan's points and ray origins kept in base_link (one per grid cell),
-without the frames, from where the previous rebuild has the scans before the first that
-moved (`GridRebuilder`); the first `add` after the rebuild has finished fuses into it the
+without the frames (`scanmap.mapping.rebuild`): by default from submaps of
+`rebuild_submap_scans` scans, built in the same background thread as they fill and
+merged each moved whole by its correction (`SubmapRebuilder`), else fusing every kept
+ray again from where the previous rebuild has the scans before the first that moved
+(`GridRebuilder`). The first `add` after the rebuild has finished fuses into it the
 scans mapped meanwhile, swaps it in and moves every pose. Until then the map and the
 obstacle queries stay as they were.
 
@@ -47,10 +50,17 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from scanmap.graph import LoopCloser
-from scanmap.grid.height_grid import GridConfig, HeightGrid, InsertStats
+from scanmap.grid.height_grid import HeightGrid, InsertStats
 from scanmap.grid.rays import scan_rays
 from scanmap.io.trajectory import Trajectory
 from scanmap.mapping.config import MapperConfig
+from scanmap.mapping.rebuild import (
+    GridRebuilder,
+    SubmapRebuilder,
+    insert_kept,
+    one_per_voxel,
+    scan_contribution,
+)
 from scanmap.mapping.scan_motion import frame_poses
 from scanmap.mapping.state_file import MapperState, load_state, save_state
 from scanmap.mapping.thread import MappingThread
@@ -58,9 +68,7 @@ from scanmap.mapping.warm_up import warm_up
 from scanmap.navigation.floor import Segmentation, segment
 from scanmap.navigation.obstacles import ObstacleMap
 from scanmap.registration import RegistrationResult, ScanOdometry
-from scanmap.registration.voxel_hash import COORD_LIMIT, first_per_voxel
 from scanmap.stage_clock import StageClock
-from scanmap_driver.errors import MapError
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel, reference_scanner
 from scanmap_driver.transforms import invert_pose, transform_points
@@ -122,7 +130,8 @@ class Mapper:
         # With loop closure over a map loaded without a graph: that map's grid (`state()`),
         # which every rebuild starts from.
         self._base: dict[str, np.ndarray] | None = None
-        self._rebuilds: GridRebuilder | None = None  # the rebuild thread's, over _base
+        # The rebuild thread's, over _base; its submaps are built as scans come.
+        self._rebuilds: GridRebuilder | SubmapRebuilder | None = None
 
     # -- mapping -------------------------------------------------------------------------
     def add(self, scan: Scan) -> MapUpdate:
@@ -150,6 +159,8 @@ class Mapper:
             if fused:  # a MapError here (beyond the extent) leaves the pose recorded
                 with clock.stage("fuse"):
                     stats = self._fuse(scan, pose)
+            if closer is not None:
+                self._prepare_submaps()
         if fused and self.config.update_obstacles:
             with clock.stage("obstacles"):
                 self.obstacles.update(self.grid, self._obstacle_bounds())
@@ -184,16 +195,34 @@ class Mapper:
             correction = poses[-1] @ invert_pose(closer.graph.poses[n - 1])
             for k in range(n, len(self._contributions)):
                 self._poses[k] = correction @ closer.graph.poses[k]
-                _insert_kept(grid, self._poses[k], self._contributions[k])
+                insert_kept(grid, self._poses[k], self._contributions[k])
             self._poses[:n] = list(poses)
             self.grid = grid
         if self._rebuild is None and closer.version != self._applied:
             self._applied = closer.version
             poses = closer.corrected_poses()
-            if self._rebuilds is None or self._rebuilds.base is not self._base:
-                self._rebuilds = GridRebuilder(self.config.grid, self._base)
-            self._rebuild = (self._rebuilder.submit(self._rebuilds.rebuild, poses,
+            self._rebuild = (self._rebuilder.submit(self._grid_rebuilder().rebuild, poses,
                                                     self._contributions[:len(poses)]), poses)
+
+    def _grid_rebuilder(self) -> GridRebuilder | SubmapRebuilder:
+        """The rebuild thread's rebuilder over the current base map (call with the lock
+        held): submaps unless configured off or the grid has a rolling window."""
+        if self._rebuilds is None or self._rebuilds.base is not self._base:
+            c = self.config
+            if c.rebuild_submap_scans is None or c.grid.window is not None:
+                self._rebuilds = GridRebuilder(c.grid, self._base)
+            else:
+                self._rebuilds = SubmapRebuilder(c.grid, self._base, c.rebuild_submap_scans)
+        return self._rebuilds
+
+    def _prepare_submaps(self) -> None:
+        """When the newest scan completes a submap, have the rebuild thread build it at
+        the current poses, off the per-scan path (call with the lock held)."""
+        rebuilder = self._grid_rebuilder()
+        n = len(self._contributions)
+        if isinstance(rebuilder, SubmapRebuilder) and n % rebuilder.scans == 0:
+            self._rebuilder.submit(rebuilder.prepare, np.array(self._poses[:n]),
+                                   self._contributions[:n])
 
     def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
         poses = frame_poses(scan, pose)
@@ -211,7 +240,7 @@ class Mapper:
                                                         float(scan.time.max()),
                                                         c.grid.resolution)
         if c.keep_points is not None:
-            keep = _one_per_voxel(points, c.keep_points)
+            keep = one_per_voxel(points, c.keep_points)
             self._kept.append((points[keep].astype(np.float32), scan.colors[keep]))
         return stats
 
@@ -398,164 +427,3 @@ def _split_kept(loops: dict[str, np.ndarray]
     origins = iter(np.split(loops["kept_origins"], bounds))
     stamps = iter(loops["kept_stamps"].tolist())
     return [(next(points), next(origins), next(stamps)) if f else None for f in fused]
-
-
-def scan_contribution(points: np.ndarray, origins: np.ndarray, pose: np.ndarray,
-                      stamp: float, resolution: float
-                      ) -> tuple[np.ndarray, np.ndarray, float]:
-    """What a rebuild keeps of a fused scan: one ray per grid-sized voxel, its (point, ray
-    origin) in base_link (float32, placed again at the scan's corrected pose), and the
-    scan's time. points, origins: the scan's rays in map at `pose`."""
-    cell = _one_per_voxel(points, resolution)
-    to_base = invert_pose(pose)
-    return (transform_points(to_base, points[cell]).astype(np.float32),
-            transform_points(to_base, origins[cell]).astype(np.float32), stamp)
-
-
-def rebuild_grid(config: GridConfig, poses: np.ndarray,
-                 contributions: list[tuple[np.ndarray, np.ndarray, float] | None],
-                 base: dict[str, np.ndarray] | None = None) -> HeightGrid:
-    """A grid of every scan's kept (points, ray origins, time) in base_link, placed at its
-    pose (None: a scan that was not fused); a rolling window centres on the last pose.
-    base: a grid's `state()` to start from (default empty)."""
-    grid = HeightGrid(config) if base is None else HeightGrid.from_state(config, base,
-                                                                          "base map")
-    if config.window is not None:
-        grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
-    grid.reserve((transform_points(pose, kept[0]), transform_points(pose, kept[1]))
-                 for pose, kept in zip(poses, contributions, strict=True) if kept is not None)
-    for pose, kept in zip(poses, contributions, strict=True):
-        _insert_kept(grid, pose, kept)
-    return grid
-
-
-class GridRebuilder:
-    """`rebuild_grid` again after each optimisation, redoing only the scans that moved.
-
-    An optimisation moves the scans after a loop's older end and leaves those before it
-    where they were (the first node is fixed, and a stretch no loop reaches is not bent):
-    after a loop back to a recent place, most of the map has not moved. The rebuilder
-    keeps copies of the grid it built (checkpoints) with the poses it placed the scans
-    at; a rebuild resumes from the newest checkpoint before the first scan whose kept
-    rays moved more than `tolerance` cells from where the grid has them, and fuses the
-    scans from there: the scans before it stay where they were, each within that
-    tolerance of its new pose. tolerance 0: only scans whose pose did not change at all
-    are reused, and the grid equals `rebuild_grid`'s.
-
-    A copy costs time and memory in proportion to the grid, a scan's fusion in
-    proportion to its rays: a checkpoint is taken once fusing since the last one took
-    `ratio` times what copying the grid is expected to take (at the copy speed measured
-    so far), and at the end of a rebuild on the same condition; the checkpoints are
-    thinned (every other older one goes) to at most `max_bytes` together. The 3-D
-    scanner's grid of an office (4.6 MB, 2.4 ms a scan) gets one every 15 scans or so
-    (its first, whole rebuild takes 13% longer than `rebuild_grid`'s; after a loop that
-    moved the last quarter of 200 scans, 0.15 s instead of 0.48); a CARMEN building's
-    (hundreds of sparse 2-D tiles, 280 MB, 0.5 ms a scan) none, and every rebuild is
-    whole, as `rebuild_grid`. With a rolling window (`config.window`)
-    every rebuild is whole (the window follows the last pose).
-
-    base: a grid's `state()` every rebuild starts from (as `rebuild_grid`'s). Called from
-    one thread at a time (the Mapper's rebuild thread); `reused`: the scans the last
-    rebuild did not fuse again.
-    """
-
-    def __init__(self, config: GridConfig, base: dict[str, np.ndarray] | None = None,
-                 tolerance: float = 0.25, ratio: float = 8.0,
-                 max_bytes: int = 256 << 20) -> None:
-        self.config, self.base, self.tolerance = config, base, float(tolerance)
-        self.ratio, self.max_bytes = float(ratio), int(max_bytes)
-        self.reused = 0
-        self._checkpoints: list[tuple[int, HeightGrid]] = []  # (scans fused, grid then)
-        self._copy_rate = 1e9  # bytes a second a copy took (measured from the first)
-        self._placed = np.zeros((0, 4, 4))  # the poses the last rebuild placed scans at
-        self._kept: list = []  # the contributions it fused (the same objects are reused)
-        self._reach: list[float] = []  # per scan, the farthest kept point or origin (m)
-
-    def rebuild(self, poses: np.ndarray,
-                contributions: list[tuple[np.ndarray, np.ndarray, float] | None]
-                ) -> HeightGrid:
-        """The grid of every scan's kept rays at `poses` (see the class docstring)."""
-        c = self.config
-        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
-        if len(contributions) != len(poses):
-            raise MapError(f"GridRebuilder: {len(contributions)} contributions for "
-                           f"{len(poses)} poses")
-        first = self._first_moved(poses, contributions) if c.window is None else 0
-        self._checkpoints = [(k, g) for k, g in self._checkpoints if k <= first]
-        if self._checkpoints:
-            start, grid = self._checkpoints[-1][0], self._checkpoints[-1][1].copy()
-        else:
-            start = 0
-            grid = HeightGrid(c) if self.base is None else HeightGrid.from_state(
-                c, self.base, "base map")
-            if c.window is not None:
-                grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
-        placed = np.concatenate([self._placed[:start], poses[start:]])
-        if not start:  # from a checkpoint, most tiles are there: insert allocates the rest
-            grid.reserve((transform_points(pose, kept[0]), transform_points(pose, kept[1]))
-                         for pose, kept in zip(placed, contributions, strict=True)
-                         if kept is not None)
-        fusing = 0.0  # seconds spent fusing since the last checkpoint
-        for k in range(start, len(poses) + 1):
-            if c.window is None and k > start \
-                    and fusing >= self.ratio * grid.used_bytes / self._copy_rate:
-                self._checkpoint(k, grid)
-                fusing = 0.0
-            if k < len(poses):
-                began = time.perf_counter()
-                _insert_kept(grid, placed[k], contributions[k])
-                fusing += time.perf_counter() - began
-        self._placed, self._kept, self.reused = placed, list(contributions), start
-        self._reach = self._reach[:start]
-        return grid
-
-    def _checkpoint(self, k: int, grid: HeightGrid) -> None:
-        """Keep a copy of `grid` (k scans fused); thin the older copies to `max_bytes`."""
-        began = time.perf_counter()
-        copy = grid.copy()
-        self._copy_rate = copy.used_bytes / max(time.perf_counter() - began, 1e-6)
-        self._checkpoints.append((k, copy))
-        while self._checkpoints and sum(g.used_bytes for _, g in self._checkpoints) \
-                > self.max_bytes:
-            if len(self._checkpoints) == 1:
-                self._checkpoints = []
-            else:
-                *older, newest = self._checkpoints
-                self._checkpoints = older[::2] + [newest]
-
-    def _first_moved(self, poses: np.ndarray, contributions: list) -> int:
-        """Index of the first scan to fuse again: moved beyond the tolerance, or not
-        fused as it is now by the last rebuild."""
-        n = min(len(poses), len(self._placed))
-        same = next((k for k in range(n) if contributions[k] is not self._kept[k]), n)
-        for k in range(len(self._reach), same):
-            kept = contributions[k]
-            self._reach.append(0.0 if kept is None else float(np.sqrt(max(
-                np.max(np.sum(np.square(kept[0], dtype=np.float64), axis=1), initial=0.0),
-                np.max(np.sum(np.square(kept[1], dtype=np.float64), axis=1), initial=0.0)))))
-        old, new = self._placed[:same], poses[:same]
-        shift = np.linalg.norm(new[:, :3, 3] - old[:, :3, 3], axis=1)
-        cosine = (np.einsum("kij,kij->k", old[:, :3, :3], new[:, :3, :3]) - 1.0) / 2.0
-        chord = np.sqrt(np.clip(2.0 - 2.0 * cosine, 0.0, None))  # |R_new - R_old| on a vector
-        bound = shift + chord * np.asarray(self._reach[:same])  # farthest a kept ray end moved
-        moved = (bound > self.tolerance * self.config.resolution) \
-            & ~(new == old).all(axis=(1, 2))
-        return int(np.argmax(moved)) if moved.any() else same
-
-
-def _insert_kept(grid: HeightGrid, pose: np.ndarray,
-                 kept: tuple[np.ndarray, np.ndarray, float] | None) -> None:
-    """Fuse one scan's kept (points, ray origins, time) in base_link at `pose`."""
-    if kept is not None:
-        points, origins, stamp = kept
-        grid.insert(transform_points(pose, points), transform_points(pose, origins), stamp)
-
-
-def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
-    """Indices of one finite point per occupied voxel (the first), in order."""
-    first, whole = first_per_voxel(points, voxel)
-    if not whole:
-        raise MapError(f"a scan's points span {COORD_LIMIT} voxels of {voxel} m or more: "
-                       "not one scan's worth")
-    return first
-

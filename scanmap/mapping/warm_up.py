@@ -4,7 +4,8 @@ Numba compiles each kernel on its first call (or loads it from its cache), which
 seconds: long enough for a first live scan's obstacle field to be stale when it is
 published. `warm_up` runs the whole per-scan pipeline once on two synthetic scans of a
 square room (registration, fusion with clearing, floor segmentation, distance fields,
-every obstacle query) in a throwaway mapper.
+every obstacle query) in a throwaway mapper, and merges its grid into an empty one (the
+submap merge of a rebuild after loop closure).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from scanmap.grid.height_grid import HeightGrid
 from scanmap_driver.scan import Scan
 
 FRAMES = 50
@@ -46,3 +48,5 @@ def warm_up(mapper: Any) -> None:
     mapper.obstacles.travel((0.0, 0.0, 0.0))  # a controller's other queries
     mapper.obstacles.polar(0.0, 0.0, 0.0)
     mapper.obstacles.clearance((0.0, 0.0, 0.0), np.array([[0.2, 0.1], [-0.2, 0.1], [0.0, -0.1]]))
+    if mapper.grid.config.window is None:
+        HeightGrid(mapper.grid.config).merge(mapper.grid)

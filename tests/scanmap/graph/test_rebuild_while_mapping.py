@@ -7,7 +7,7 @@ import threading
 
 import numpy as np
 
-import scanmap.mapping.mapper as mapper_module
+import scanmap.mapping.rebuild as rebuild_module
 from scanmap.evaluation import ate_rmse
 from scanmap.graph import LoopClosureConfig
 from scanmap.mapping import Mapper, MapperConfig
@@ -17,14 +17,14 @@ from scanmap.navigation.obstacles import QueryStatus
 def test_queries_answer_from_the_old_map_until_the_rebuild_is_swapped_in(ring_ideal,
                                                                          monkeypatch):
     started, release = threading.Event(), threading.Event()
-    rebuild = mapper_module.GridRebuilder.rebuild
+    rebuild = rebuild_module.SubmapRebuilder.rebuild
 
     def held(self, *args):
         started.set()
         assert release.wait(120)
         return rebuild(self, *args)
 
-    monkeypatch.setattr(mapper_module.GridRebuilder, "rebuild", held)
+    monkeypatch.setattr(rebuild_module.SubmapRebuilder, "rebuild", held)
     config = MapperConfig(loop_closure=LoopClosureConfig(enabled=True))
     mapper = Mapper(config=config, offline=True, initial_pose=ring_ideal[0].pose_start)
     scans = [s.scan for s in ring_ideal]
