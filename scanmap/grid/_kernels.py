@@ -43,7 +43,7 @@ within ceil(l_max / (max_misses * l_miss)) scans once it has gone.
 
 Memory layout (flat, for speed): cell `off = (slot << 2s) | (row << s) | col` with
 s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, bundle key,
-bundle mask, scans whose rays reached it)`, where bit b of a mask covers
+bundle mask[, scans whose rays reached it])`, where bit b of a mask covers
 z_min + [b, b+1) * mask_dz; `nlev[off]` levels in use; level k of the cell is record
 `off * K + k` of lev_f (lo, hi, log-odds, mean hit x, y offset from the cell centre,
 this scan's hit range), lev_n (hits, passes, scan stamp, scans that hit it) and
@@ -63,10 +63,11 @@ N_FLOAT_FIELDS = 7
 HITS, PASSES, STAMP, SCANS = 0, 1, 2, 3
 N_INT_FIELDS = 4
 HIT_FLAG = 0x80  # lev_flag bit: hit in scan `stamp`; the low bits count its misses
-# Fields of cells[off]: observed-height mask, last scan id, the ray-bundle scratch, and
-# the scans whose rays reached the cell (not saved: how strongly a submap saw it free).
+# Fields of cells[off]: observed-height mask, last scan id, and the ray-bundle scratch;
+# a grid that counts visits (a submap) has a fifth, the scans whose rays reached the
+# cell (not saved: how strongly a submap saw it free).
 SEEN, SCAN, VKEY, VMASK, VISITS = range(5)
-N_CELL_FIELDS = 5
+N_CELL_FIELDS = 4
 
 # Point classes of classify_points.
 POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO_FAR = range(5)
@@ -75,7 +76,7 @@ POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO
 (FP_RES, FP_X0, FP_Y0, FP_ZMIN, FP_MASK_DZ, FP_GAP, FP_MARGIN, FP_LHIT, FP_LMISS, FP_LMAX,
  FP_PROTECT, FP_PASS_RADIUS) = range(12)
 # Indices into the integer parameter vector `ip`.
-IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN, IP_STATIC = range(7)
+IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN, IP_STATIC, IP_VISITS = range(8)
 
 _U32_MAX = np.uint32(0xFFFFFFFF)
 _MEAN_WINDOW = 1024.0  # hit-centroid running mean forgets beyond this many hits
@@ -537,6 +538,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
     z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
     shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
     bundle_run, static_scans = ip[IP_RUN], ip[IP_STATIC]
+    count_visits = ip[IP_VISITS] != 0
     mask = (1 << shift) - 1
     scan = np.uint32(ip[IP_SCAN])
     scan64 = np.uint64(ip[IP_SCAN])
@@ -557,7 +559,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
             fresh[n_fresh] = off
             fresh_z[n_fresh] = z
             n_fresh += 1
-        if cells[off, SCAN] != scan64:
+        if count_visits and cells[off, SCAN] != scan64:
             cells[off, VISITS] += np.uint64(1)
         cells[off, SCAN] = scan64
         n_hits += 1
@@ -604,7 +606,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                         cells[off, VMASK] = 0
                     cells[off, VMASK] |= bits
                     cells[off, SEEN] |= bits
-                    if cells[off, SCAN] != scan64:
+                    if count_visits and cells[off, SCAN] != scan64:
                         cells[off, VISITS] += np.uint64(1)
                     cells[off, SCAN] = scan64
                     if nlev[off] > 0 and t_out > t_margin:

@@ -186,6 +186,9 @@ def merge_submap(src_index, src_f, src_n, src_nlev, src_cells, dst_index, lev_f,
                     occupied |= height_mask(src_f[co * levels + m, LO],
                                             src_f[co * levels + m, HI], z_min, dz)
             free = seen & ~occupied
+            # a miss for each scan that reached the cell (one where the submap did not
+            # count them)
+            visits = float(src_cells[so, VISITS]) if src_cells.shape[1] > VISITS else 1.0
             for k in range(np.int64(nlev[do]) - 1, -1, -1):  # 1. seen through
                 li = dbase + k
                 lo, hi = lev_f[li, LO], lev_f[li, HI]
@@ -195,7 +198,7 @@ def merge_submap(src_index, src_f, src_n, src_nlev, src_cells, dst_index, lev_f,
                         or occupied & height_mask(lo - gap, hi + gap, z_min, dz):
                     continue  # static, not seen through, or the submap has a level near
                 lev_n[li, PASSES] = np.uint32(min(float(lev_n[li, PASSES]) + 1.0, _U32_MAX))
-                lev_f[li, LOGODDS] -= fp[FP_LMISS] * float(src_cells[so, VISITS])
+                lev_f[li, LOGODDS] -= fp[FP_LMISS] * visits
                 if lev_f[li, LOGODDS] <= 0.0:
                     _remove(lev_f, lev_n, lev_flag, nlev, do, k, levels)
                     removed += 1

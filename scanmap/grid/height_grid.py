@@ -206,8 +206,11 @@ def _path(stood: np.ndarray, spacing: float) -> np.ndarray:
 class HeightGrid:
     """The 2.5D grid. Thread-safe: insert, copy and layers never interleave."""
 
-    def __init__(self, config: GridConfig | None = None) -> None:
+    def __init__(self, config: GridConfig | None = None, count_visits: bool = False) -> None:
+        """count_visits: also count per cell the scans whose rays reached it (what a
+        submap's free space weighs in `merge`)."""
         self.config = config or GridConfig()
+        self.count_visits = bool(count_visits)
         c = self.config
         n = c.tiles_per_side
         self._tile_index = np.full((n, n), -1, np.int32)
@@ -223,7 +226,8 @@ class HeightGrid:
         self._lev_n = np.zeros((0, levels, gk.N_INT_FIELDS), np.uint32)
         self._lev_flag = np.zeros((0, levels), np.uint8)
         self._nlev = np.zeros((0, cells), np.uint8)
-        self._cells = np.zeros((0, cells, gk.N_CELL_FIELDS), np.uint64)
+        self._cell_fields = gk.N_CELL_FIELDS + int(self.count_visits)
+        self._cells = np.zeros((0, cells, self._cell_fields), np.uint64)
         self._ray_key = 0  # last ray-bundle key used
         self._fp = np.array([c.resolution, c.corner, c.corner, c.z_min, c.mask_dz, c.merge_gap,
                              c.clear_margin, c.l_hit, c.l_miss, c.l_max, c.protect,
@@ -258,7 +262,7 @@ class HeightGrid:
         """The pools as the kernels address them: one record per level or cell."""
         return (self._lev_f.reshape(-1, gk.N_FLOAT_FIELDS),
                 self._lev_n.reshape(-1, gk.N_INT_FIELDS), self._lev_flag.reshape(-1),
-                self._nlev.reshape(-1), self._cells.reshape(-1, gk.N_CELL_FIELDS))
+                self._nlev.reshape(-1), self._cells.reshape(-1, self._cell_fields))
 
     def _allocate(self, tiles: np.ndarray) -> None:
         """Give each (ty, tx) in `tiles` an empty slot, growing the pools by doubling."""
@@ -396,7 +400,8 @@ class HeightGrid:
                     break
             self._scan_times.append(float(stamp))
             ip = np.array([self._shift, c.levels, c.max_misses, len(self._scan_times) - 1,
-                           self._ray_key, c.bundle_run, c.static_scans], np.int64)
+                           self._ray_key, c.bundle_run, c.static_scans,
+                           int(self.count_visits)], np.int64)
             hits, cleared, self._ray_key = gk.insert_scan(points, origins, cls,
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)
@@ -538,7 +543,7 @@ class HeightGrid:
         """An independent grid holding exactly what this one holds (its tiles with the
         scratch of ray bundles, the scan times, where the robot stood), without spare
         slots: inserting the same scans into both gives the same grid."""
-        out = HeightGrid(self.config)
+        out = HeightGrid(self.config, self.count_visits)
         with self._lock:
             used = np.flatnonzero(self._coords[:, 0] >= 0)
             out._set_pools([a[used] for a in self._pools()])

@@ -215,12 +215,14 @@ class Mapper:
                 self._rebuilds = SubmapRebuilder(c.grid, self._base, c.rebuild_submap_scans)
         return self._rebuilds
 
-    def _prepare_submaps(self) -> None:
-        """When the newest scan completes a submap, have the rebuild thread build it at
-        the current poses, off the per-scan path (call with the lock held)."""
+    def _prepare_submaps(self, resumed: bool = False) -> None:
+        """When the newest scan completes a submap (`resumed`: a loaded map's scans), have
+        the rebuild thread build them at the current poses, off the per-scan path (call
+        with the lock held)."""
         rebuilder = self._grid_rebuilder()
         n = len(self._contributions)
-        if isinstance(rebuilder, SubmapRebuilder) and n % rebuilder.scans == 0:
+        if isinstance(rebuilder, SubmapRebuilder) and n >= rebuilder.scans \
+                and (resumed or n % rebuilder.scans == 0):
             self._rebuilder.submit(rebuilder.prepare, np.array(self._poses[:n]),
                                    self._contributions[:n])
 
@@ -377,6 +379,7 @@ class Mapper:
         self._contributions = _split_kept(loops)
         base = {k[len("base_"):]: v for k, v in loops.items() if k.startswith("base_")}
         self._base = base or None
+        self._prepare_submaps(resumed=True)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], *, clock: Callable[[], float] = time.monotonic,

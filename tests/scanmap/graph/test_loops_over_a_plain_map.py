@@ -68,6 +68,9 @@ def test_a_map_without_a_graph_is_extended_by_a_new_one(ring_ideal, tmp_path, su
     day_two.save(tmp_path / "day2.npz")
     day_three = Mapper.load(tmp_path / "day2.npz", offline=True, config=closing)
     assert day_three.loop_closer.graph.fixed == first
+    if submap_scans is not None:  # its submaps are built in the background once loaded
+        day_three._rebuilder.submit(lambda: None).result(timeout=120)
+        assert len(day_three._rebuilds._submaps) == len(ring_ideal) // submap_scans
     assert_same_grid(HeightGrid.from_state(closing.grid, day_three._base), load_map(
         tmp_path / "day1.npz").grid)
 
