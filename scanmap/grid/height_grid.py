@@ -434,14 +434,14 @@ class HeightGrid:
             raise MapError(f"HeightGrid.merge: motion must be a finite 4x4 pose, got {m.shape}")
         yaw = math.atan2(m[1, 0], m[0, 0])
         planar = np.array([math.cos(yaw), math.sin(yaw), m[0, 3], m[1, 3]])
+        turn = np.array([[planar[0], planar[1]], [-planar[1], planar[0]]])  # rows @ turn
         with submap._lock:
             bounds = submap.bounds()
             if bounds is None:
                 return 0
             corners = np.array([[bounds[0], bounds[1]], [bounds[2], bounds[1]],
                                 [bounds[0], bounds[3]], [bounds[2], bounds[3]]])
-            moved = corners @ np.array([[planar[0], planar[1]], [-planar[1], planar[0]]]) \
-                + planar[2:]
+            moved = corners @ turn + planar[2:]
             side = c.tiles_per_side * c.tile_cells
             low = np.floor((moved.min(axis=0) - c.corner) / c.resolution).astype(int) - 1
             high = np.ceil((moved.max(axis=0) - c.corner) / c.resolution).astype(int) + 1
@@ -462,15 +462,13 @@ class HeightGrid:
                 removed = mk.merge_submap(submap._tile_index, src_f, src_n, src_nlev,
                                           src_cells, self._tile_index, *self._flat_pools(),
                                           planar, box, src_box, self._fp, self._shift,
-                                          c.levels,
-                                          c.static_scans, offset)
+                                          c.levels, c.static_scans, offset)
                 self._scan_times.extend(submap._scan_times[1:])
                 if not math.isnan(submap.stamp):
                     self.stamp = submap.stamp if math.isnan(self.stamp) \
                         else max(self.stamp, submap.stamp)
                 stood = np.array(submap._stood, np.float64).reshape(-1, 2)
-                self._stood.extend(map(tuple, stood @ np.array(
-                    [[planar[0], planar[1]], [-planar[1], planar[0]]]) + planar[2:]))
+                self._stood.extend(map(tuple, stood @ turn + planar[2:]))
         return int(removed)
 
     # -- reading -----------------------------------------------------------------------

@@ -46,8 +46,7 @@ def rebuild_grid(config: GridConfig, poses: np.ndarray,
                                                                           "base map")
     if config.window is not None:
         grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
-    grid.reserve((transform_points(pose, kept[0]), transform_points(pose, kept[1]))
-                 for pose, kept in zip(poses, contributions, strict=True) if kept is not None)
+    _reserve_kept(grid, poses, contributions)
     for pose, kept in zip(poses, contributions, strict=True):
         insert_kept(grid, pose, kept)
     return grid
@@ -116,9 +115,7 @@ class GridRebuilder:
                 grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
         placed = np.concatenate([self._placed[:start], poses[start:]])
         if not start:  # from a checkpoint, most tiles are there: insert allocates the rest
-            grid.reserve((transform_points(pose, kept[0]), transform_points(pose, kept[1]))
-                         for pose, kept in zip(placed, contributions, strict=True)
-                         if kept is not None)
+            _reserve_kept(grid, placed, contributions)
         fusing = 0.0  # seconds spent fusing since the last checkpoint
         for k in range(start, len(poses) + 1):
             if c.window is None and k > start \
@@ -243,12 +240,11 @@ class SubmapRebuilder:
                     self.reused += self.scans
                     return submap, motion
         grid = HeightGrid(self.config, count_visits=True)
-        grid.reserve((transform_points(pose, k[0]), transform_points(pose, k[1]))
-                     for pose, k in zip(poses[first:last], kept, strict=True) if k is not None)
+        _reserve_kept(grid, poses[first:last], kept)  # its tiles exactly: no spare slots
         for pose, k in zip(poses[first:last], kept, strict=True):
             insert_kept(grid, pose, k)
         submap = _Submap(kept, poses[first:last].copy(), np.array([_reach(k) for k in kept]),
-                         grid.copy())
+                         grid)
         self._submaps[j:j + 1] = [submap]
         return submap, np.eye(4)
 
@@ -279,6 +275,13 @@ def insert_kept(grid: HeightGrid, pose: np.ndarray,
     if kept is not None:
         points, origins, stamp = kept
         grid.insert(transform_points(pose, points), transform_points(pose, origins), stamp)
+
+
+def _reserve_kept(grid: HeightGrid, poses: np.ndarray,
+                  contributions: list[Contribution | None]) -> None:
+    """Allocate the tiles the kept rays at `poses` need, at once (`HeightGrid.reserve`)."""
+    grid.reserve((transform_points(pose, kept[0]), transform_points(pose, kept[1]))
+                 for pose, kept in zip(poses, contributions, strict=True) if kept is not None)
 
 
 def one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
