@@ -324,7 +324,7 @@ def submap_rebuilds(poses: np.ndarray, kept: list, moved: np.ndarray) -> dict:
     rebuilds.prepare(poses, kept)
     out = {"submap_build_per_1000_scans_s": 1000 * (time.perf_counter() - start) / n,
            "submap_mb_per_1000_scans": 1000 / n * sum(
-               s.grid.used_bytes for s in rebuilds._submaps) / 1e6}
+               s.grid.nbytes for s in rebuilds._submaps) / 1e6}
     for name, placed in (("last_quarter_moved", moved), ("spread_correction", spread)):
         seconds = []
         for _ in range(3):

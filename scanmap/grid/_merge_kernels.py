@@ -21,7 +21,9 @@ unknown at its heights, never free. Per cell, with the submap the newer observat
    becomes a level of its own; levels it grew into merge, as a hit's growth merges.
 3. The observed heights are joined; the last update is the newer one.
 Scan ids of the submap (its cells' last scan, its levels' stamps) move by `scan_offset`,
-so that they follow the destination's.
+so that they follow the destination's. The submap comes packed (`scanmap.grid.packed`):
+its cells found through its own tile index (`_src_offset`), its levels from each cell's
+`first`.
 """
 
 from __future__ import annotations
@@ -49,7 +51,6 @@ from scanmap.grid._kernels import (
     SCANS,
     SEEN,
     STAMP,
-    VISITS,
     _level_for,
     _merge_grown,
     _nearest_level,
@@ -57,6 +58,7 @@ from scanmap.grid._kernels import (
     _remove,
     height_mask,
 )
+from scanmap.grid.packed import P_SCAN, P_SEEN, P_VISITS
 
 _U32_MAX = 4294967295.0
 
@@ -75,6 +77,13 @@ def _cell_offset(tile_index, ix, iy, shift) -> int:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _src_offset(src_index, src_origin, ix, iy, shift) -> int:
+    """Packed cell offset of the submap's cell (ix, iy) (the grid's cell numbers), or -1
+    where it has no tile."""
+    return _cell_offset(src_index, ix - src_origin[0], iy - src_origin[1], shift)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _source_index(motion, ix, iy, fp) -> tuple[int, int]:
     """(ix, iy) of the submap cell under the centre of destination cell (ix, iy); motion:
     cos, sin, tx, ty of the submap's motion into the destination."""
@@ -86,12 +95,13 @@ def _source_index(motion, ix, iy, fp) -> tuple[int, int]:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _source_cell(src_index, src_nlev, src_cells, motion, ix, iy, fp, shift) -> int:
+def _source_cell(src_index, src_origin, src_nlev, src_cells, motion, ix, iy, fp, shift
+                 ) -> int:
     """Offset of the submap cell under destination cell (ix, iy), or -1 where the submap
     holds nothing."""
     sx, sy = _source_index(motion, ix, iy, fp)
-    off = _cell_offset(src_index, sx, sy, shift)
-    if off < 0 or (src_nlev[off] == 0 and src_cells[off, SEEN] == 0):
+    off = _src_offset(src_index, src_origin, sx, sy, shift)
+    if off < 0 or (src_nlev[off] == 0 and src_cells[off, P_SEEN] == 0):
         return -1
     return off
 
@@ -124,8 +134,8 @@ def _list_tile(dst_index, ix, iy, shift, out, count) -> int:
 
 
 @njit(cache=True, nogil=True)
-def tiles_to_merge(src_index, src_f, src_nlev, src_cells, dst_index, motion, box, src_box, fp,
-                   shift, levels, out) -> int:
+def tiles_to_merge(src_index, src_origin, src_nlev, src_first, src_cells, src_f, dst_index,
+                   motion, box, src_box, fp, shift, out) -> int:
     """The destination tiles (ty, tx) not allocated yet that the merge writes (cells of
     `box` over submap cells that hold something, and the cells the submap's levels land
     in, from its cells in `src_box`; boxes are ix0, iy0, ix1, iy1), into `out`; their
@@ -134,17 +144,18 @@ def tiles_to_merge(src_index, src_f, src_nlev, src_cells, dst_index, motion, box
     count = 0
     for iy in range(box[1], box[3]):
         for ix in range(box[0], box[2]):
-            if _source_cell(src_index, src_nlev, src_cells, motion, ix, iy, fp, shift) >= 0:
+            if _source_cell(src_index, src_origin, src_nlev, src_cells, motion, ix, iy, fp,
+                            shift) >= 0:
                 count = _list_tile(dst_index, ix, iy, shift, out, count)
                 if count < 0:
                     return -1
     for sy in range(src_box[1], src_box[3]):
         for sx in range(src_box[0], src_box[2]):
-            so = _cell_offset(src_index, sx, sy, shift)
+            so = _src_offset(src_index, src_origin, sx, sy, shift)
             if so < 0:
                 continue
             for m in range(np.int64(src_nlev[so])):
-                ix, iy, _, _ = _hit_cell(src_f, so * levels + m, sx, sy, motion, fp)
+                ix, iy, _, _ = _hit_cell(src_f, src_first[so] + m, sx, sy, motion, fp)
                 count = _list_tile(dst_index, ix, iy, shift, out, count)
                 if count < 0:
                     return -1
@@ -152,9 +163,9 @@ def tiles_to_merge(src_index, src_f, src_nlev, src_cells, dst_index, motion, box
 
 
 @njit(cache=True, nogil=True)
-def merge_submap(src_index, src_f, src_n, src_nlev, src_cells, dst_index, lev_f, lev_n,
-                 lev_flag, nlev, cells, motion, box, src_box, fp, shift, levels,
-                 static_scans, scan_offset) -> int:
+def merge_submap(src_index, src_origin, src_nlev, src_first, src_cells, src_f, src_n,
+                 dst_index, lev_f, lev_n, lev_flag, nlev, cells, motion, box, src_box, fp,
+                 shift, levels, static_scans, scan_offset) -> int:
     """Merge the submap into the destination (see the module docstring): its free space
     over destination cells `box` (inverse mapping), then its levels each into the cell
     its mean hit lands in (so a turned wall stays where it was hit); returns the
@@ -165,7 +176,8 @@ def merge_submap(src_index, src_f, src_n, src_nlev, src_cells, dst_index, lev_f,
     removed = 0
     for iy in range(box[1], box[3]):
         for ix in range(box[0], box[2]):
-            so = _source_cell(src_index, src_nlev, src_cells, motion, ix, iy, fp, shift)
+            so = _source_cell(src_index, src_origin, src_nlev, src_cells, motion, ix, iy, fp,
+                              shift)
             if so < 0:
                 continue
             do = _cell_offset(dst_index, ix, iy, shift)
@@ -177,18 +189,17 @@ def merge_submap(src_index, src_f, src_n, src_nlev, src_cells, dst_index, lev_f,
                 qx = ix + (0.05 if corner & 1 else 0.95) - 0.5
                 qy = iy + (0.05 if corner & 2 else 0.95) - 0.5
                 cx, cy = _source_index(motion, qx, qy, fp)
-                co = _cell_offset(src_index, cx, cy, shift)
+                co = _src_offset(src_index, src_origin, cx, cy, shift)
                 if co < 0:
                     seen = np.uint64(0)
                     continue
-                seen &= src_cells[co, SEEN]
-                for m in range(np.int64(src_nlev[co])):
-                    occupied |= height_mask(src_f[co * levels + m, LO],
-                                            src_f[co * levels + m, HI], z_min, dz)
+                seen &= src_cells[co, P_SEEN]
+                for m in range(src_first[co], src_first[co] + np.int64(src_nlev[co])):
+                    occupied |= height_mask(src_f[m, LO], src_f[m, HI], z_min, dz)
             free = seen & ~occupied
             # a miss for each scan that reached the cell (one where the submap did not
             # count them)
-            visits = float(src_cells[so, VISITS]) if src_cells.shape[1] > VISITS else 1.0
+            visits = float(src_cells[so, P_VISITS])
             for k in range(np.int64(nlev[do]) - 1, -1, -1):  # 1. seen through
                 li = dbase + k
                 lo, hi = lev_f[li, LO], lev_f[li, HI]
@@ -206,15 +217,14 @@ def merge_submap(src_index, src_f, src_n, src_nlev, src_cells, dst_index, lev_f,
             # taken as seen: the level may land in the next cell (its mean hit moved across
             # the cell's edge), and this one must then stay unknown, not become free.
             cells[do, SEEN] |= free
-            if src_cells[so, SCAN] > 0:
-                cells[do, SCAN] = max(cells[do, SCAN], src_cells[so, SCAN] + np.uint64(offset))
+            if src_cells[so, P_SCAN] > 0:
+                cells[do, SCAN] = max(cells[do, SCAN], src_cells[so, P_SCAN] + np.uint64(offset))
     for sy in range(src_box[1], src_box[3]):  # 2. the submap's levels
         for sx in range(src_box[0], src_box[2]):
-            so = _cell_offset(src_index, sx, sy, shift)
+            so = _src_offset(src_index, src_origin, sx, sy, shift)
             if so < 0:
                 continue
-            for m in range(np.int64(src_nlev[so])):
-                sl = so * levels + m
+            for sl in range(src_first[so], src_first[so] + np.int64(src_nlev[so])):
                 ix, iy, mx, my = _hit_cell(src_f, sl, sx, sy, motion, fp)
                 do = _cell_offset(dst_index, ix, iy, shift)
                 if do >= 0:

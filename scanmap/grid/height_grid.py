@@ -24,6 +24,7 @@ import numpy as np
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid import _merge_kernels as mk
+from scanmap.grid.packed import PackedGrid, pack_pools
 from scanmap_driver.errors import MapError
 from scanmap_driver.files import exact_array
 
@@ -418,57 +419,68 @@ class HeightGrid:
                            too_far=int(counts[gk.POINT_TOO_FAR]), cleared=cleared,
                            new_tiles=new_tiles)
 
-    def merge(self, submap: HeightGrid, motion: np.ndarray | None = None) -> int:
-        """Merge `submap`, a grid of later scans with the same configuration, moved by the
-        planar rigid `motion` (4x4; its x, y and yaw; default none), as if its scans had
-        been fused after this grid's (`_merge_kernels`: levels it saw through go, levels
-        joined, its scan times appended). For a rebuild after loop closure: a submap
-        moved whole costs a pass over its cells instead of its rays. Returns the levels
-        removed as seen through."""
+    def packed(self) -> PackedGrid:
+        """What `merge` reads of this grid, packed (`scanmap.grid.packed`): a submap
+        kept for later merges in a fraction of a live grid's memory."""
+        with self._lock:
+            used = np.flatnonzero(self._coords[:, 0] >= 0)
+            arrays = pack_pools(self._coords[used], self._lev_f[used], self._lev_n[used],
+                                self._nlev[used], self._cells[used],
+                                gk.VISITS if self.count_visits else None)
+            return PackedGrid(self.config, *arrays, bounds=self.bounds(),
+                              scan_times=tuple(self._scan_times),
+                              stood=np.array(self._stood, np.float64).reshape(-1, 2),
+                              stamp=self.stamp)
+
+    def merge(self, submap: HeightGrid | PackedGrid, motion: np.ndarray | None = None) -> int:
+        """Merge `submap`, a grid of later scans with the same configuration (or its
+        `packed()` form), moved by the planar rigid `motion` (4x4; its x, y and yaw;
+        default none), as if its scans had been fused after this grid's (`_merge_kernels`:
+        levels it saw through go, levels joined, its scan times appended). For a rebuild
+        after loop closure: a submap moved whole costs a pass over its cells instead of
+        its rays. Returns the levels removed as seen through."""
         c = self.config
         if c.window is not None or submap.config != c:
             raise MapError("HeightGrid.merge: needs two grids of one configuration "
                            "without a rolling window")
+        if isinstance(submap, HeightGrid):
+            submap = submap.packed()
         m = np.eye(4) if motion is None else np.asarray(motion, dtype=np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():
             raise MapError(f"HeightGrid.merge: motion must be a finite 4x4 pose, got {m.shape}")
+        if submap.bounds is None:
+            return 0
         yaw = math.atan2(m[1, 0], m[0, 0])
         planar = np.array([math.cos(yaw), math.sin(yaw), m[0, 3], m[1, 3]])
         turn = np.array([[planar[0], planar[1]], [-planar[1], planar[0]]])  # rows @ turn
-        with submap._lock:
-            bounds = submap.bounds()
-            if bounds is None:
-                return 0
-            corners = np.array([[bounds[0], bounds[1]], [bounds[2], bounds[1]],
-                                [bounds[0], bounds[3]], [bounds[2], bounds[3]]])
-            moved = corners @ turn + planar[2:]
-            side = c.tiles_per_side * c.tile_cells
-            low = np.floor((moved.min(axis=0) - c.corner) / c.resolution).astype(int) - 1
-            high = np.ceil((moved.max(axis=0) - c.corner) / c.resolution).astype(int) + 1
-            box = np.array([*np.clip(low, 0, side), *np.clip(high, 0, side)], np.int64)
-            src_box = np.round((np.array(bounds) - c.corner) / c.resolution).astype(np.int64)
-            src_f, src_n, _, src_nlev, src_cells = submap._flat_pools()
-            with self._lock:
-                buffer = np.empty((256, 2), np.int64)
-                while True:
-                    count = mk.tiles_to_merge(submap._tile_index, src_f, src_nlev,
-                                              src_cells, self._tile_index, planar, box,
-                                              src_box, self._fp, self._shift, c.levels,
-                                              buffer)
-                    self._allocate(buffer if count < 0 else buffer[:count])
-                    if count >= 0:
-                        break
-                offset = len(self._scan_times) - 1
-                removed = mk.merge_submap(submap._tile_index, src_f, src_n, src_nlev,
-                                          src_cells, self._tile_index, *self._flat_pools(),
-                                          planar, box, src_box, self._fp, self._shift,
-                                          c.levels, c.static_scans, offset)
-                self._scan_times.extend(submap._scan_times[1:])
-                if not math.isnan(submap.stamp):
-                    self.stamp = submap.stamp if math.isnan(self.stamp) \
-                        else max(self.stamp, submap.stamp)
-                stood = np.array(submap._stood, np.float64).reshape(-1, 2)
-                self._stood.extend(map(tuple, stood @ turn + planar[2:]))
+        bounds = submap.bounds
+        corners = np.array([[bounds[0], bounds[1]], [bounds[2], bounds[1]],
+                            [bounds[0], bounds[3]], [bounds[2], bounds[3]]])
+        moved = corners @ turn + planar[2:]
+        side = c.tiles_per_side * c.tile_cells
+        low = np.floor((moved.min(axis=0) - c.corner) / c.resolution).astype(int) - 1
+        high = np.ceil((moved.max(axis=0) - c.corner) / c.resolution).astype(int) + 1
+        box = np.array([*np.clip(low, 0, side), *np.clip(high, 0, side)], np.int64)
+        src_box = np.round((np.array(bounds) - c.corner) / c.resolution).astype(np.int64)
+        src = (submap.tiles, submap.cell_origin(self._shift), submap.nlev, submap.first,
+               submap.cells, submap.lev_f)
+        with self._lock:
+            buffer = np.empty((256, 2), np.int64)
+            while True:
+                count = mk.tiles_to_merge(*src, self._tile_index, planar, box, src_box,
+                                          self._fp, self._shift, buffer)
+                self._allocate(buffer if count < 0 else buffer[:count])
+                if count >= 0:
+                    break
+            offset = len(self._scan_times) - 1
+            removed = mk.merge_submap(*src, submap.lev_n, self._tile_index,
+                                      *self._flat_pools(), planar, box, src_box, self._fp,
+                                      self._shift, c.levels, c.static_scans, offset)
+            self._scan_times.extend(submap.scan_times[1:])
+            if not math.isnan(submap.stamp):
+                self.stamp = submap.stamp if math.isnan(self.stamp) \
+                    else max(self.stamp, submap.stamp)
+            self._stood.extend(map(tuple, submap.stood @ turn + planar[2:]))
         return int(removed)
 
     # -- reading -----------------------------------------------------------------------

@@ -76,6 +76,33 @@ def test_merged_into_an_empty_grid_a_submap_is_itself():
     assert merged.stamp == submap.stamp
 
 
+def test_a_packed_grid_holds_each_cells_levels_and_heights_in_less_memory():
+    grid = room_grid()
+    packed = grid.packed()
+    assert packed.lev_f.shape[0] == grid.layers().nlev.sum() > 0  # the levels in use only
+    assert packed.nbytes < grid.memory_bytes / 4
+    box = (-10, -20, 50, 30)
+    dense = cells(grid, box)
+    shift = CONFIG.tile_cells.bit_length() - 1
+    origin = packed.cell_origin(shift) - round(-CONFIG.corner / RES)  # from the map origin
+    for (y, x) in np.ndindex(dense.nlev.shape):  # each cell read back from the packing
+        ix, iy = box[0] + x - origin[0], box[1] + y - origin[1]
+        inside = 0 <= iy >> shift < packed.tiles.shape[0] \
+            and 0 <= ix >> shift < packed.tiles.shape[1]
+        tile = packed.tiles[iy >> shift, ix >> shift] if inside else -1
+        if tile < 0:
+            assert dense.nlev[y, x] == 0 and dense.seen[y, x] == 0
+            continue
+        off = (int(tile) << 2 * shift) | ((iy & 63) << shift) | (ix & 63)
+        n = packed.nlev[off]
+        assert n == dense.nlev[y, x]
+        levels = packed.lev_f[packed.first[off]:packed.first[off] + n]
+        np.testing.assert_array_equal(levels, dense.levels[y, x, :n])
+        assert packed.cells[off, 0] == dense.seen[y, x]
+        assert packed.cells[off, 2] == 1  # no visits counted: one scan each
+    assert packed.scan_times == tuple(grid._scan_times) and packed.stamp == grid.stamp
+
+
 @settings(max_examples=12, deadline=None)
 @given(turns=st.integers(0, 3), dx=st.integers(-40, 40), dy=st.integers(-40, 40))
 def test_a_submap_moved_by_whole_cells_and_quarter_turns_is_moved_cell_for_cell(turns, dx,
