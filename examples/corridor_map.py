@@ -27,11 +27,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scans", type=int, default=20,
                         help="scans to simulate when the recording is missing (default 20)")
     parser.add_argument("--out", type=Path, default=DATA / "corridor_map")
-    parser.add_argument("--workers", type=int, default=2, help="threads (and simulator "
-                        "processes) to use (default 2)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="threads assembling scans (default: one per CPU this process "
+                             "may use) and simulator processes (default 2)")
     args = parser.parse_args(argv)
 
-    recording = ensure_recording(args.recording, "corridor", args.scans, args.workers)
+    recording = ensure_recording(args.recording, "corridor", args.scans, args.workers or 2)
 
     def progress(done: int, total: int, update: MapUpdate) -> None:
         pose = update.pose

@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from scanmap.stage_clock import StageClock
+from scanmap_driver.cpus import usable_cpus
 from scanmap_driver.errors import RecordingError, ScanError
 from scanmap_driver.processing import recording_scans
 from scanmap_driver.recording import GROUND_TRUTH, INDEX_NAME, RecordedFrame, Recording, ScanRecord
@@ -95,13 +96,15 @@ class ScanSource:
 
     @classmethod
     def open(cls, path: str | os.PathLike[str], model: ScannerModel | None = None,
-             workers: int = 2) -> ScanSource:
+             workers: int | None = None) -> ScanSource:
         """A recording folder (with `recording.json`) or a folder of `scan_NNNN.npz`.
 
         model: the scanner model (default: the recording's own; the reference scanner for
-        scan files, which do not carry one).
+        scan files, which do not carry one). workers: threads assembling scans (default:
+        one per CPU this process may use).
         """
         path = Path(path)
+        workers = usable_cpus() if workers is None else workers
         if (path / INDEX_NAME).is_file():
             recording = Recording.open(path)
             return cls(path, "recording", model or recording.model, len(recording.scans),

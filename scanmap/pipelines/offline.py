@@ -66,7 +66,7 @@ Progress = Callable[[int, int, MapUpdate], None]
 
 
 def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *,
-                  model: ScannerModel | None = None, workers: int = 2,
+                  model: ScannerModel | None = None, workers: int | None = None,
                   config: MapperConfig = OFFLINE_CONFIG, progress: Progress | None = None,
                   resume: str | os.PathLike[str] | None = None) -> dict:
     """Map INPUT (a recording or a folder of scan_NNNN.npz) into `out`; returns the report.

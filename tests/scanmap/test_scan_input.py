@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -41,6 +45,18 @@ def test_a_recording_is_assembled_in_parallel_and_delivered_in_order(three_scans
     frames = Recording.open(three_scans).scans[0].frame_times
     period = 1.0 / source.model.camera.frame_rate
     assert source.sweep_seconds() == pytest.approx(3 * (frames[-1] - frames[0] + period))
+
+
+def test_by_default_one_thread_assembles_per_cpu_the_process_may_use(three_scans):
+    """The default follows the process's CPU affinity (a container's cpuset, taskset),
+    not the machine's count: pinned to one CPU in a child process, one worker."""
+    pinned = (f"import os; os.sched_setaffinity(0, {{min(os.sched_getaffinity(0))}}); "
+              f"from scanmap.datasets.recordings import ScanSource; "
+              f"print(ScanSource.open({str(three_scans)!r}).workers)")
+    out = subprocess.run([sys.executable, "-c", pinned], capture_output=True, text=True,
+                         check=True, timeout=120)
+    assert out.stdout.split() == ["1"]
+    assert ScanSource.open(three_scans).workers == len(os.sched_getaffinity(0))
 
 
 def test_a_folder_of_scan_files_is_read_in_order(three_scans, tmp_path):

@@ -30,8 +30,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--scanner", type=Path, default=None, metavar="FILE",
                         help="scanner model (default: the recording's own; the reference "
                              "scanner for scan files)")
-    parser.add_argument("--workers", type=int, default=2,
-                        help="threads assembling scans from video (default 2)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="threads assembling scans from video (default: one per CPU "
+                             "this process may use)")
     parser.add_argument("--resume", type=Path, default=None, metavar="MAP",
                         help="continue this map.npz (a previous run's) with INPUT's scans")
     parser.add_argument("--loop-closure", action="store_true",
