@@ -27,20 +27,21 @@ CONFIG = GridConfig(extent=50.0)
 RES = CONFIG.resolution
 
 
-def room_grid(seed: int = 0) -> HeightGrid:
+def room_grid(seed: int = 0, at: tuple[float, float] = (0.0, 0.0)) -> HeightGrid:
     """A small grid: rays from two origins to a wall, a box top and the floor, with hits
-    off the cells' centres."""
+    off the cells' centres; `at` shifts the room (m)."""
     rng = np.random.default_rng(seed)
     grid = HeightGrid(CONFIG)
+    shift = np.array([*at, 0.0])
     for scan in range(3):
-        origin = np.array([0.3 + 0.1 * scan, 0.2, 1.0])
+        origin = np.array([0.3 + 0.1 * scan, 0.2, 1.0]) + shift
         wall = np.column_stack([np.full(40, 2.013), rng.uniform(-0.5, 0.9, 40),
                                 rng.uniform(0.0, 0.9, 40)])
         floor = np.column_stack([rng.uniform(0.5, 1.9, 60), rng.uniform(-0.5, 0.9, 60),
                                  rng.normal(0.0, 0.002, 60)])
         box = np.column_stack([rng.uniform(1.2, 1.4, 10), rng.uniform(0.1, 0.3, 10),
                                np.full(10, 0.4)])
-        points = np.vstack([wall, floor, box])
+        points = np.vstack([wall, floor, box]) + shift
         grid.insert(points, origin, 10.0 + scan)
     return grid
 
@@ -101,6 +102,21 @@ def test_a_packed_grid_holds_each_cells_levels_and_heights_in_less_memory():
         assert packed.cells[off, 0] == dense.seen[y, x]
         assert packed.cells[off, 2] == 1  # no visits counted: one scan each
     assert packed.scan_times == tuple(grid._scan_times) and packed.stamp == grid.stamp
+
+
+def test_a_submap_at_one_corner_of_the_extent_merged_at_the_other_is_itself_there():
+    """Far from the origin: a room in the extent's last tiles (48 m out, 50 m extent)
+    moved 96 m back along each axis lands in its first tiles cell for cell."""
+    far = room_grid(2, at=(48.0, 48.0))
+    merged = HeightGrid(CONFIG)
+    merged.merge(far, se2_to_pose(-96.0, -96.0, 0.0))
+    box = np.array([-1000, -1000, -900, -940])  # cells from the map origin, the room moved
+    a, b = cells(merged, tuple(box)), cells(far, tuple(box + 1920))  # 96 m = 1920 cells
+    assert b.nlev.sum() > 100
+    np.testing.assert_array_equal(a.nlev, b.nlev)
+    np.testing.assert_array_equal(a.counts, b.counts)
+    np.testing.assert_array_equal(a.levels, b.levels)
+    np.testing.assert_array_equal(a.seen, b.seen & ~occupied_bits(b))
 
 
 @settings(max_examples=12, deadline=None)
