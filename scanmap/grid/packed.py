@@ -16,14 +16,11 @@ For the office's submaps of 25 scans: 1.44 MB against 7.33 MB as built
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from scanmap.grid import _kernels as gk
-
-if TYPE_CHECKING:
-    from scanmap.grid.height_grid import GridConfig
+from scanmap.grid.config import GridConfig
 
 # Columns of PackedGrid.cells.
 P_SEEN, P_SCAN, P_VISITS = range(3)

@@ -1,0 +1,111 @@
+"""The grid's geometry and sensor model (`GridConfig`): what a grid, a submap packed for
+merging and a map file must agree on."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from scanmap_driver.errors import MapError
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """Geometry and sensor model of a grid.
+
+    resolution: cell side (m). tile_cells: cells per tile side (a power of 2).
+    levels: K, the most height intervals a cell keeps. extent: half side (m) of the
+    square around the map origin that the grid may cover. window: side (m) of the
+    rolling window around the robot, or None for a map that keeps everything seen.
+    z_min, mask_dz: bottom and bin height of the 64-bin observed-height mask.
+    merge_gap: hits closer than this in height join one level (m).
+    clear_margin: the last metres of a ray before its hit clear nothing.
+    protect: a level hit in a scan keeps, in that scan, the space within this height of
+    its hits from being cleared (m). Keep it below the robot's step height (5 cm by
+    default) by more than the floor's noise: the floor where a person stood, merged with
+    the foot into one level and hit on the floor in every scan, is cut down by later
+    rays only to this scan's floor hits plus `protect`, and must end below the robot's
+    band (at 5 cm such cells stayed obstacles for tens of scans in the people scene).
+    static_scans, pass_radius: a level hit in at least `static_scans` scans (about 20 s
+    at the scanner's 2 s a turn: a wall, furniture) is cleared only by rays that pass
+    within `pass_radius` (m, x-y) of the level's mean hit. Where a face cuts a cell, rays
+    through the cell's free part would otherwise clear the face; a level seen briefly (a
+    person passing) clears from any pass through its cell.
+    max_range: rays longer than this are dropped (m).
+    l_hit, l_miss, l_max: log-odds added per hit and removed per pass (once per scan and
+    at most `max_misses` times per scan, respectively), and the clamp.
+    bundle_run: a ray stops after this many cells in a row already updated by a ray from
+    the same origin (0: trace every ray to its origin; see grid_kernels).
+    """
+
+    resolution: float = 0.05
+    tile_cells: int = 64
+    levels: int = 3
+    extent: float = 1000.0
+    window: float | None = None
+    z_min: float = -0.35
+    mask_dz: float = 0.025
+    merge_gap: float = 0.10
+    clear_margin: float = 0.1
+    protect: float = 0.03
+    pass_radius: float = 0.0175
+    static_scans: int = 10
+    max_range: float = 20.0
+    l_hit: float = 0.85
+    l_miss: float = 0.4
+    l_max: float = 3.5
+    max_misses: int = 5
+    bundle_run: int = 3
+
+    def __post_init__(self) -> None:
+        positive = ("resolution", "extent", "mask_dz", "merge_gap", "max_range", "l_hit",
+                    "l_miss", "l_max")
+        for name in positive:
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise MapError(f"GridConfig.{name}: expected a finite number > 0, got {value!r}")
+        for name in ("clear_margin", "protect", "pass_radius"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise MapError(f"GridConfig.{name}: expected a finite number >= 0, got {value!r}")
+        if not math.isfinite(self.z_min):
+            raise MapError(f"GridConfig.z_min: expected a finite number, got {self.z_min!r}")
+        t = self.tile_cells
+        if not (isinstance(t, int) and 8 <= t <= 1024 and t & (t - 1) == 0):
+            raise MapError(f"GridConfig.tile_cells: expected a power of 2 in 8..1024, got {t!r}")
+        if not (isinstance(self.levels, int) and 1 <= self.levels <= 16):
+            raise MapError(f"GridConfig.levels: expected an integer 1..16, got {self.levels!r}")
+        if not (isinstance(self.bundle_run, int) and self.bundle_run >= 0):
+            raise MapError(f"GridConfig.bundle_run: expected an integer >= 0, "
+                           f"got {self.bundle_run!r}")
+        if not (isinstance(self.static_scans, int) and self.static_scans >= 1):
+            raise MapError(f"GridConfig.static_scans: expected an integer >= 1, "
+                           f"got {self.static_scans!r}")
+        if not (isinstance(self.max_misses, int) and 1 <= self.max_misses <= 127):
+            raise MapError(f"GridConfig.max_misses: expected 1..127, got {self.max_misses!r}")
+        if self.window is not None and not (math.isfinite(self.window)
+                                            and 0 < self.window <= 2 * self.extent):
+            raise MapError(f"GridConfig.window: expected None or 0 < window <= 2*extent, "
+                           f"got {self.window!r}")
+        if self.tiles_per_side > 8192:
+            raise MapError(f"GridConfig.extent: {self.extent} m needs {self.tiles_per_side} "
+                           "tiles per side (max 8192); use larger tiles or cells")
+
+    @property
+    def tile_size(self) -> float:
+        """Tile side in metres."""
+        return self.tile_cells * self.resolution
+
+    @property
+    def tiles_per_side(self) -> int:
+        """Tiles along each side of the extent."""
+        return math.ceil(2.0 * self.extent / self.tile_size)
+
+    @property
+    def corner(self) -> float:
+        """x and y (m) of the lower-left corner of tile (0, 0)."""
+        return -0.5 * self.tiles_per_side * self.tile_size
+
+    def to_dict(self) -> dict:
+        """Plain values, for map files."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
