@@ -292,7 +292,7 @@ def rebuild_3d(scans: int = REBUILD_SCANS) -> list[dict]:
         rebuilds.rebuild(moved if k % 2 == 0 else poses, kept)
         after_loop.append(time.perf_counter() - start)
     settings = (f"sim office, 3-D scanner, {scans} scans ({len(set(cycle))} cycled), "
-                f"{int(np.mean([len(k[0]) for k in kept]))} rays a scan kept")
+                f"{int(np.mean([len(k.points) for k in kept]))} rays a scan kept")
     whole = {"stage": "loop closure", "method": "grid rebuild from kept rays (rebuild_grid)",
              "settings": settings, "median_s": per_scan, "per_1000_scans_s": 1000 * per_scan,
              "budget_s": 1e-3, "last_quarter_moved_s": float(np.median(after_loop)),

@@ -55,6 +55,7 @@ from scanmap.grid.rays import scan_rays
 from scanmap.io.trajectory import Trajectory
 from scanmap.mapping.config import MapperConfig
 from scanmap.mapping.rebuild import (
+    Contribution,
     GridRebuilder,
     SubmapRebuilder,
     insert_kept,
@@ -126,7 +127,7 @@ class Mapper:
         # Per scan, with loop closure: its fused points and ray origins in base_link (one
         # per grid cell) and its time, to rebuild the grid at corrected poses; None when
         # the scan was not fused.
-        self._contributions: list[tuple[np.ndarray, np.ndarray, float] | None] = []
+        self._contributions: list[Contribution | None] = []
         # With loop closure over a map loaded without a graph: that map's grid (`state()`),
         # which every rebuild starts from.
         self._base: dict[str, np.ndarray] | None = None
@@ -358,11 +359,11 @@ class Mapper:
         empty = np.zeros((0, 3), np.float32)
         base = {} if self._base is None else {f"base_{k}": v for k, v in self._base.items()}
         return {**self.loop_closer.state(), **base,
-                "kept_points": np.concatenate([empty, *(k[0] for k in kept)]),
-                "kept_origins": np.concatenate([empty, *(k[1] for k in kept)]),
-                "kept_sizes": np.array([-1 if k is None else len(k[0])
+                "kept_points": np.concatenate([empty, *(k.points for k in kept)]),
+                "kept_origins": np.concatenate([empty, *(k.origins for k in kept)]),
+                "kept_sizes": np.array([-1 if k is None else len(k.points)
                                         for k in self._contributions], np.int64),
-                "kept_stamps": np.array([k[2] for k in kept], np.float64)}
+                "kept_stamps": np.array([k.stamp for k in kept], np.float64)}
 
     def _resume_loops(self, state: MapperState) -> None:
         """Continue the saved pose graph; a map saved without one starts a new graph whose
@@ -420,8 +421,7 @@ class Mapper:
         return mapper
 
 
-def _split_kept(loops: dict[str, np.ndarray]
-                ) -> list[tuple[np.ndarray, np.ndarray, float] | None]:
+def _split_kept(loops: dict[str, np.ndarray]) -> list[Contribution | None]:
     """The per-scan kept points of a map file's loop-closure arrays, as the Mapper keeps them."""
     sizes = loops["kept_sizes"]
     fused = sizes >= 0
@@ -429,4 +429,5 @@ def _split_kept(loops: dict[str, np.ndarray]
     points = iter(np.split(loops["kept_points"], bounds))
     origins = iter(np.split(loops["kept_origins"], bounds))
     stamps = iter(loops["kept_stamps"].tolist())
-    return [(next(points), next(origins), next(stamps)) if f else None for f in fused]
+    return [Contribution.of_rays(next(points), next(origins), next(stamps)) if f else None
+            for f in fused]

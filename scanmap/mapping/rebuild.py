@@ -22,19 +22,56 @@ from scanmap.registration.voxel_hash import COORD_LIMIT, first_per_voxel
 from scanmap_driver.errors import MapError
 from scanmap_driver.transforms import invert_pose, transform_points
 
-Contribution = tuple[np.ndarray, np.ndarray, float]
+
+@dataclass(frozen=True, eq=False)
+class Contribution:
+    """What a rebuild keeps of a fused scan, in base_link (float32, placed again at the
+    scan's corrected pose): the rays' ends, their origins as rows of `origin_table` (a
+    scan's rays start from a few camera positions, one a frame: 2 bytes a ray instead of
+    12), and the scan's time."""
+
+    points: np.ndarray  # (N, 3) float32
+    origin_table: np.ndarray  # (F, 3) float32
+    origin_index: np.ndarray  # (N,) uint16, or uint32 beyond 65,536 origins
+    stamp: float
+
+    @classmethod
+    def of_rays(cls, points: np.ndarray, origins: np.ndarray, stamp: float) -> Contribution:
+        """From (N, 3) ray ends and origins: each run of equal origins (a frame's rays
+        come together) becomes one row of the table."""
+        origins = np.asarray(origins, np.float32).reshape(-1, 3)
+        starts = np.ones(len(origins), bool)
+        starts[1:] = (origins[1:] != origins[:-1]).any(axis=1)
+        index = np.cumsum(starts) - 1
+        kind = np.uint16 if len(index) == 0 or index[-1] < 2**16 else np.uint32
+        return cls(np.asarray(points, np.float32).reshape(-1, 3), origins[starts],
+                   index.astype(kind), float(stamp))
+
+    @property
+    def origins(self) -> np.ndarray:
+        """(N, 3) float32: each ray's origin."""
+        return self.origin_table[self.origin_index]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of its arrays."""
+        return self.points.nbytes + self.origin_table.nbytes + self.origin_index.nbytes
+
+    def placed(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ends, origins) of its rays at `pose` (4x4), float64, in map."""
+        return (transform_points(pose, self.points),
+                transform_points(pose, self.origin_table)[self.origin_index])
 
 
 def scan_contribution(points: np.ndarray, origins: np.ndarray, pose: np.ndarray,
                       stamp: float, resolution: float
                       ) -> Contribution:
-    """What a rebuild keeps of a fused scan: one ray per grid-sized voxel, its (point, ray
-    origin) in base_link (float32, placed again at the scan's corrected pose), and the
-    scan's time. points, origins: the scan's rays in map at `pose`."""
+    """What a rebuild keeps of a fused scan: one ray per grid-sized voxel (`Contribution`).
+    points, origins: the scan's rays in map at `pose`."""
     cell = one_per_voxel(points, resolution)
     to_base = invert_pose(pose)
-    return (transform_points(to_base, points[cell]).astype(np.float32),
-            transform_points(to_base, origins[cell]).astype(np.float32), stamp)
+    return Contribution.of_rays(transform_points(to_base, points[cell]),
+                                transform_points(to_base, origins[cell]), stamp)
 
 
 def rebuild_grid(config: GridConfig, poses: np.ndarray,
@@ -273,16 +310,15 @@ def _planar(pose: np.ndarray) -> np.ndarray:
 
 def insert_kept(grid: HeightGrid, pose: np.ndarray,
                  kept: Contribution | None) -> None:
-    """Fuse one scan's kept (points, ray origins, time) in base_link at `pose`."""
+    """Fuse one scan's kept rays at `pose`."""
     if kept is not None:
-        points, origins, stamp = kept
-        grid.insert(transform_points(pose, points), transform_points(pose, origins), stamp)
+        grid.insert(*kept.placed(pose), kept.stamp)
 
 
 def _reserve_kept(grid: HeightGrid, poses: np.ndarray,
                   contributions: list[Contribution | None]) -> None:
     """Allocate the tiles the kept rays at `poses` need, at once (`HeightGrid.reserve`)."""
-    grid.reserve((transform_points(pose, kept[0]), transform_points(pose, kept[1]))
+    grid.reserve(kept.placed(pose)
                  for pose, kept in zip(poses, contributions, strict=True) if kept is not None)
 
 
@@ -300,8 +336,9 @@ def _reach(kept: Contribution | None) -> float:
     if kept is None:
         return 0.0
     return float(np.sqrt(max(
-        np.max(np.sum(np.square(kept[0], dtype=np.float64), axis=1), initial=0.0),
-        np.max(np.sum(np.square(kept[1], dtype=np.float64), axis=1), initial=0.0))))
+        np.max(np.sum(np.square(kept.points, dtype=np.float64), axis=1), initial=0.0),
+        np.max(np.sum(np.square(kept.origin_table, dtype=np.float64), axis=1),
+               initial=0.0))))
 
 
 def _moved(old: np.ndarray, new: np.ndarray, reach: np.ndarray, limit: float) -> np.ndarray:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
-from scanmap.mapping.rebuild import GridRebuilder, SubmapRebuilder, rebuild_grid
+from scanmap.mapping.rebuild import Contribution, GridRebuilder, SubmapRebuilder, rebuild_grid
 from scanmap.navigation.floor import segment
 from scanmap_driver.errors import MapError
 from scanmap_driver.transforms import se2_to_pose, transform_points
@@ -19,9 +19,9 @@ def kept_rays(ring_ideal: list) -> tuple[np.ndarray, list]:
     one scan not fused (None)."""
     poses = np.array([s.pose_start @ se2_to_pose(0.01 * k, 0.0, 0.002 * k)
                       for k, s in enumerate(ring_ideal)])
-    kept = [(s.scan.points[::7].astype(np.float32),
-             np.broadcast_to(np.float32([0.0, 0.0, 0.3]), s.scan.points[::7].shape),
-             float(s.scan.stamp)) for s in ring_ideal]
+    kept = [Contribution.of_rays(s.scan.points[::7],
+                                 np.broadcast_to([0.0, 0.0, 0.3], s.scan.points[::7].shape),
+                                 float(s.scan.stamp)) for s in ring_ideal]
     kept[3] = None
     return poses, kept
 
@@ -32,8 +32,32 @@ def plain(grid: HeightGrid, poses: np.ndarray, kept: list) -> HeightGrid:
         grid.recenter(float(poses[-1][0, 3]), float(poses[-1][1, 3]))
     for pose, k in zip(poses, kept, strict=True):
         if k is not None:
-            grid.insert(transform_points(pose, k[0]), transform_points(pose, k[1]), k[2])
+            grid.insert(transform_points(pose, k.points), transform_points(pose, k.origins),
+                        k.stamp)
     return grid
+
+
+@pytest.mark.parametrize("distinct", [0, 1, 5, 70_000])
+def test_kept_rays_keep_each_run_of_one_origin_once(distinct):
+    """A scan's rays start from one camera position a frame: each run of equal origins is
+    one row of the table, the origins come back exactly (as float32), and past 65,536
+    rows the index widens."""
+    rng = np.random.default_rng(distinct)
+    cameras = rng.normal(0.0, 1.0, (distinct, 3))
+    runs = rng.integers(1, 4, distinct) if distinct < 100 else np.ones(distinct, int)
+    origins = np.repeat(cameras, runs, axis=0)
+    if distinct == 5:  # a camera position met again later is a row of its own
+        origins = np.vstack([origins, cameras[:1]])
+    points = rng.normal(0.0, 3.0, (len(origins), 3))
+    kept = Contribution.of_rays(points, origins, 7.5)
+    np.testing.assert_array_equal(kept.origins, origins.astype(np.float32))
+    np.testing.assert_array_equal(kept.points, points.astype(np.float32))
+    assert len(kept.origin_table) == distinct + (distinct == 5) and kept.stamp == 7.5
+    assert kept.origin_index.dtype == (np.uint32 if distinct > 2**16 else np.uint16)
+    pose = se2_to_pose(1.0, -2.0, 0.3)
+    ends, starts = kept.placed(pose)
+    np.testing.assert_array_equal(ends, transform_points(pose, points.astype(np.float32)))
+    np.testing.assert_array_equal(starts, transform_points(pose, origins.astype(np.float32)))
 
 
 @pytest.mark.parametrize("window", [None, 12.0])
@@ -89,8 +113,8 @@ def test_a_rebuilder_with_no_tolerance_equals_rebuild_grid_after_every_optimisat
         grid = rebuilds.rebuild(poses[:count], kept[:count])
         assert_same_stood(grid, rebuild_grid(config, poses[:count], kept[:count]))
         # The Mapper fuses later scans into the grid it got: the checkpoints stay apart.
-        grid.insert(transform_points(poses[0], kept[0][0]),
-                    transform_points(poses[0], kept[0][1]), 1e9)
+        grid.insert(transform_points(poses[0], kept[0].points),
+                    transform_points(poses[0], kept[0].origins), 1e9)
     assert rebuilds.reused == n  # nothing moved: nothing redone
     # ratio 0 takes a checkpoint wherever one is due: some are kept, thinned to max_bytes
     assert rebuilds._checkpoints
@@ -112,7 +136,7 @@ def test_a_rebuilder_redoes_only_the_scans_after_the_first_that_moved(ring_ideal
     placed = np.concatenate([poses[:reused], later[reused:]])
     assert_same_stood(grid, rebuild_grid(config, placed, kept))
     # A turn that moves the scan's farthest kept point by half a cell counts as moved.
-    reach = np.linalg.norm(kept[4][0], axis=1).max()
+    reach = np.linalg.norm(kept[4].points, axis=1).max()
     turned = placed.copy()
     turned[4] = turned[4] @ se2_to_pose(0.0, 0.0, 0.5 * config.resolution / reach)
     assert rebuilds._first_moved(turned, kept) == 4
