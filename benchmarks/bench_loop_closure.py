@@ -70,6 +70,7 @@ from scanmap.evaluation.trajectory_errors import ate_rmse
 from scanmap.graph import Edge, LoopCloser, LoopClosureConfig, PoseGraph
 from scanmap.grid.height_grid import GridConfig
 from scanmap.mapping.rebuild import (
+    Contribution,
     GridRebuilder,
     SubmapRebuilder,
     rebuild_grid,
@@ -221,14 +222,11 @@ def loops_everywhere(closer: LoopCloser, reference: np.ndarray) -> np.ndarray:
     return graph.optimise(np.array(closer.graph.poses), c.loop_kernel)
 
 
-def _kept_2d(seq: Sequence) -> list[tuple[np.ndarray, np.ndarray, float]]:
+def _kept_2d(seq: Sequence) -> list[Contribution]:
     """Each scan of `seq` as a rebuild keeps it (every point, the laser 0.3 m up)."""
-    contributions = []
-    for scan in seq.scans:
-        points = scan.points.astype(np.float32)
-        contributions.append((points, np.broadcast_to(np.float32([0.0, 0.0, 0.3]),
-                                                      points.shape), float(scan.stamp)))
-    return contributions
+    return [Contribution.of_rays(scan.points, np.broadcast_to([0.0, 0.0, 0.3],
+                                                              scan.points.shape),
+                                 float(scan.stamp)) for scan in seq.scans]
 
 
 def rebuild_seconds(seq: Sequence, poses: np.ndarray) -> float:
