@@ -11,11 +11,16 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
 
+# Waits up to 10 minutes for another apt or dpkg (an unattended upgrade, a second
+# set-up) to release its lock instead of failing at once.
+APT_WAIT=(-o DPkg::Lock::Timeout=600)
 apt_install() {
   if [ "$(id -u)" = 0 ]; then
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$@"
+    apt-get "${APT_WAIT[@]}" update -qq \
+      && DEBIAN_FRONTEND=noninteractive apt-get "${APT_WAIT[@]}" install -y -qq "$@"
   elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then
-    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$@"
+    sudo apt-get "${APT_WAIT[@]}" update -qq \
+      && sudo DEBIAN_FRONTEND=noninteractive apt-get "${APT_WAIT[@]}" install -y -qq "$@"
   else
     echo "scanmap setup: please run:  sudo apt-get install -y $*" >&2
     exit 1
