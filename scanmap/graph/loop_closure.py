@@ -144,6 +144,7 @@ class LoopCloser:
         self._keyframes: list[int] = []
         self._descriptors: list[PlaceDescriptor] = []
         self._optimised = np.zeros((0, 4, 4))  # corrected poses of the first nodes
+        self._join: tuple[int, np.ndarray] | None = None  # see `join`
         self._version = 0
         self._lock = threading.Lock()
         self._queue: queue.Queue = queue.Queue()
@@ -158,13 +159,20 @@ class LoopCloser:
         base_link. Cheap: the search and the optimisation run in the worker."""
         self._raise_worker_error()
         pose = np.asarray(pose, dtype=np.float64)
+        c = self.config
         with self._lock:
             node = self.graph.add_node(pose)
-            if node:
+            if node and self._join is not None:
+                anchor, information = self._join
+                self._join = None
+                located = self._estimates(node + 1)
+                self._travel.append(self._travel[-1] + c.min_separation)
+                self.graph.add_edge(Edge(anchor, node, invert_pose(located[anchor])
+                                         @ located[node], information))
+            elif node:
                 previous = self.graph.poses[node - 1]
                 step = np.linalg.norm(pose[:2, 3] - previous[:2, 3])
                 self._travel.append(self._travel[-1] + float(step))
-                c = self.config
                 self.graph.add_edge(Edge(node - 1, node, invert_pose(previous) @ pose,
                                          planar_information(result.covariance, (
                                              c.odometry_sigma, c.odometry_yaw_sigma))))
@@ -172,6 +180,21 @@ class LoopCloser:
                 self._travel.append(0.0)
         self._queue.put((node, np.asarray(points)))
         return node
+
+    def join(self, node: int, information: np.ndarray) -> None:
+        """Hang the next scan added on node `node` instead of on the last one, by an edge
+        of `information` (3x3) measuring their poses as given: a new session located in
+        a loaded map (`scanmap.graph.localise`), where an odometry edge would span the
+        unknown move between sessions. In travel the new scans start `min_separation`
+        beyond the saved ones, so loops onto the saved map close from their first
+        keyframe."""
+        self._join = (int(node), np.asarray(information, dtype=np.float64))
+
+    def keyframes(self) -> list[tuple[int, PlaceDescriptor]]:
+        """(node, place descriptor) of each keyframe processed so far (call `finish` first
+        for all of them)."""
+        with self._lock:
+            return list(zip(self._keyframes, self._descriptors, strict=False))
 
     @property
     def version(self) -> int:
@@ -356,6 +379,26 @@ class LoopCloser:
                 how: str) -> tuple[Loop, Edge] | None:
         """ICP of the keyframe's local map onto the candidate's; a Loop and its edge if it
         passes every test (see the module docstring)."""
+        c = self.config
+        result = self.match(context, candidate, guess)
+        if result is None:
+            return None
+        with self._lock:
+            estimates = self._estimates(node + 1)
+        estimate = invert_pose(estimates[candidate]) @ estimates[node]
+        moved = float(np.linalg.norm(result.pose[:2, 3] - estimate[:2, 3]))
+        turned = abs(pose_to_se2(invert_pose(estimate) @ result.pose)[2])
+        if moved > self._gate(node, candidate) or turned > c.max_yaw_gate:
+            return None
+        return (Loop(candidate, node, how, result.fitness, moved),
+                Edge(candidate, node, result.pose, self.loop_information(result), loop=True))
+
+    def match(self, points: np.ndarray, candidate: int, guess: np.ndarray
+              ) -> RegistrationResult | None:
+        """ICP of (N, 3) `points` onto the local map around node `candidate` (its frame),
+        from `guess` (their pose in that frame); the result if it converged, constrains
+        every direction and matches as a loop must (`min_fitness`, `max_rmse`), else None.
+        """
         c, r = self.config, self.registration
         target = LocalMap(voxel_size=r.map_voxel_size, radius=1e6, max_count=r.map_max_count,
                           min_points=r.min_plane_points, flatness=r.flatness,
@@ -366,22 +409,18 @@ class LoopCloser:
         # 0.40 on FHW (0.30) and 1.33 on Belgioioso (1.15), though 0.40 on Acapulco (0.52).
         settings = replace(r, max_correction=np.inf, max_rotation=np.pi,  # the gate judges
                            match_blobs=False)
-        source = prepare_source(context, settings)
+        source = prepare_source(points, settings)
         prior = Prior(guess, np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 1.0]))
         result = register_scan(source, target, prior, r.max_threshold, settings)
         if not result.ok or result.degenerate or result.fitness < c.min_fitness \
                 or result.inlier_rmse > c.max_rmse:
             return None
-        with self._lock:
-            estimates = self._estimates(node + 1)
-        estimate = invert_pose(estimates[candidate]) @ estimates[node]
-        moved = float(np.linalg.norm(result.pose[:2, 3] - estimate[:2, 3]))
-        turned = abs(pose_to_se2(invert_pose(estimate) @ result.pose)[2])
-        if moved > self._gate(node, candidate) or turned > c.max_yaw_gate:
-            return None
-        information = planar_information(result.covariance, (c.loop_sigma, c.loop_yaw_sigma))
-        return (Loop(candidate, node, how, result.fitness, moved),
-                Edge(candidate, node, result.pose, information, loop=True))
+        return result
+
+    def loop_information(self, result: RegistrationResult) -> np.ndarray:
+        """3x3 information of a loop measured by `result` (sigmas floored)."""
+        c = self.config
+        return planar_information(result.covariance, (c.loop_sigma, c.loop_yaw_sigma))
 
     def _optimise(self) -> None:
         """Optimise the nodes processed so far (not those the caller added since: the

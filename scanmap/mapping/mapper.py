@@ -50,6 +50,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from scanmap.graph import LoopCloser
+from scanmap.graph.localise import Localisation, NotLocalised, localise
 from scanmap.grid.height_grid import HeightGrid, InsertStats
 from scanmap.grid.rays import scan_rays
 from scanmap.io.trajectory import Trajectory
@@ -133,12 +134,19 @@ class Mapper:
         self._base: dict[str, np.ndarray] | None = None
         # The rebuild thread's, over _base; its submaps are built as scans come.
         self._rebuilds: GridRebuilder | SubmapRebuilder | None = None
+        # A loaded map to locate the next scan in first (`load(localise=True)`): its path
+        # and the hints; then where that scan was found.
+        self._start: tuple[str, list[np.ndarray]] | None = None
+        self.localisation: Localisation | None = None
 
     # -- mapping -------------------------------------------------------------------------
     def add(self, scan: Scan) -> MapUpdate:
         """Register, fuse and publish one scan (see the module docstring)."""
         clock = StageClock()
         with self._lock:
+            if self._start is not None:
+                with clock.stage("localise"):
+                    self._localise(scan)
             closer = self.loop_closer
             if closer is not None and (self._rebuild or closer.version != self._applied):
                 with clock.stage("loop_closure"):
@@ -166,6 +174,29 @@ class Mapper:
             with clock.stage("obstacles"):
                 self.obstacles.update(self.grid, self._obstacle_bounds())
         return MapUpdate(int(scan.index), float(scan.stamp), pose, result, fused, stats, clock)
+
+    @property
+    def localising(self) -> bool:
+        """Whether the next scan is first to be located in the loaded map."""
+        return self._start is not None
+
+    def _localise(self, scan: Scan) -> None:
+        """Locate `scan` in the loaded map (`scanmap.graph.localise`) and restart
+        registration there, the scan's graph node hung on the keyframe it matched (call
+        with the lock held). Raises NotLocalised, naming the map, with nothing recorded:
+        the next scan tries again."""
+        path, hints = self._start
+        try:
+            found = localise(self.loop_closer, scan.points, hints)
+        except NotLocalised as exc:
+            raise NotLocalised(f"{path}: {exc}") from None
+        c = self.config
+        self._start = None
+        self.localisation = found
+        self.registration = ScanOdometry(
+            c.registration, c.noise, invert_pose(self.loop_closer.correction()) @ found.pose)
+        self.loop_closer.join(found.node, found.information)
+        self._recent.clear()
 
     def close_loops(self) -> None:
         """Wait for loop closure to process every scan, then move the map to its newest
@@ -384,17 +415,26 @@ class Mapper:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], *, clock: Callable[[], float] = time.monotonic,
-             offline: bool = False,
-             config: MapperConfig | None = None) -> Mapper:
+             offline: bool = False, config: MapperConfig | None = None,
+             localise: bool = False, hint: np.ndarray | None = None) -> Mapper:
         """A Mapper continuing the map saved at `path`.
 
         The next scan registers against the newest scans saved with the map, with the
         odometry of the last scan as the prior's reference: keep the robot's odometry
         running between sessions (or give scans without odometry). config: replaces the
         saved settings except the grid's.
+
+        localise: the robot may have been moved since: the next scan is first located in
+        the map (`scanmap.graph.localise`: near `hint`, a 4x4 pose in the map, or where
+        the robot stopped, else by place), and mapping goes on from there. Needs a map
+        saved with loop closure (its keyframes); `add` raises NotLocalised, naming the
+        file and recording nothing, while no place matches.
         """
         state = load_state(path)
         config = state.config if config is None else replace(config, grid=state.config.grid)
+        if localise and not (config.loop_closure.enabled and state.loop_closure):
+            raise NotLocalised(f"{path}: to localise in a map it must have been saved with "
+                               f"loop closure on (its keyframes are the places looked up)")
         last = state.poses[-1] if len(state.poses) else None
         mapper = cls(state.model, config, clock=clock, offline=offline, initial_pose=last)
         mapper.grid = state.grid
@@ -418,6 +458,10 @@ class Mapper:
             mapper._position = (float(last[0, 3]), float(last[1, 3]))
             if config.update_obstacles:
                 mapper.obstacles.update(mapper.grid, mapper._obstacle_bounds())
+        if localise:
+            hints = [np.asarray(hint, dtype=np.float64)] if hint is not None else \
+                [] if last is None else [last]
+            mapper._start = (os.fspath(path), hints)
         return mapper
 
 

@@ -41,6 +41,7 @@ from scanmap.mapping.config import MapperConfig
 from scanmap.mapping.mapper import Mapper, MapUpdate
 from scanmap.navigation.costmap import occupancy_grid
 from scanmap.navigation.floor import FREE, OBSTACLE, UNKNOWN, Segmentation
+from scanmap.pipelines.resume import Resume, add_located, localisation_summary
 from scanmap.stage_clock import StageClock
 from scanmap_driver.files import write_json
 from scanmap_driver.scan import Scan
@@ -68,25 +69,28 @@ Progress = Callable[[int, int, MapUpdate], None]
 def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *,
                   model: ScannerModel | None = None, workers: int | None = None,
                   config: MapperConfig = OFFLINE_CONFIG, progress: Progress | None = None,
-                  resume: str | os.PathLike[str] | None = None) -> dict:
+                  resume: Resume | str | os.PathLike[str] | None = None) -> dict:
     """Map INPUT (a recording or a folder of scan_NNNN.npz) into `out`; returns the report.
 
     resume: a map.npz to continue (its settings and scanner model are kept) instead of
-    starting a new map.
+    starting a new map, from where the robot stopped or, with a `Resume` that says so,
+    from where its first scan is located in it.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start, start_cpu = time.perf_counter(), time.process_time()
     scans = ScanSource.open(source, model, workers)
-    mapper = Mapper.load(resume, offline=True) if resume else \
-        Mapper(scans.model, config, offline=True)
+    resume = Resume.of(resume)
+    mapper = resume.mapper() if resume else Mapper(scans.model, config, offline=True)
     stages: dict[str, list[StageClock]] = defaultdict(list)
     truth_scans = bool(scans.ground_truth and any(scans.ground_truth.glob("scan_*.npz")))
     kept: list[Scan] = []
     notes = []
     outcome: Counter[str] = Counter()
     for done, item in enumerate(scans, start=1):
-        update = mapper.add(item.scan)
+        update = add_located(mapper, item.scan, notes)
+        if update is None:
+            continue
         outcome.update({update.registration.status.value: 1, "fused": int(update.fused),
                         "degenerate": int(update.registration.degenerate)})
         for clock in (item.timing, update.timing):
@@ -100,6 +104,7 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
             progress(done, scans.count, update)
     mapping_wall = time.perf_counter() - start
     mapping_cpu = time.process_time() - start_cpu
+    localised = localisation_summary(mapper, notes)
 
     products = StageClock()
     with ThreadPoolExecutor(max(scans.workers, 1), thread_name_prefix="scanmap-truth") as pool:
@@ -118,7 +123,8 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
     report = {
         "format": REPORT_FORMAT,
         "input": {"path": str(scans.path), "kind": scans.kind, "scans": scans.count,
-                  "resumed": None if resume is None else str(resume)},
+                  "resumed": None if resume is None else str(resume.path),
+                  "localised": localised},
         "mapping": {"wall_seconds": mapping_wall,
                     "seconds_per_scan": mapping_wall / max(scans.count, 1),
                     "process_cpu_seconds": mapping_cpu,

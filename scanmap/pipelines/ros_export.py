@@ -41,6 +41,7 @@ from scanmap.pipelines.offline import (
     offline_config,
     write_products,
 )
+from scanmap.pipelines.resume import Resume, add_located, localisation_summary
 from scanmap.registration import RegistrationConfig
 from scanmap_driver.errors import RecordingError
 from scanmap_driver.files import write_json
@@ -163,25 +164,31 @@ def bag_config(scans: BagScans, config: MapperConfig | None = None,
 def map_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str], scan_topic: str, *,
             odom_topic: str | None = None, config: MapperConfig | None = None,
             progress: Callable[[int, int, MapUpdate], None] | None = None,
-            resume: str | os.PathLike[str] | None = None, loop_closure: bool = False) -> dict:
+            resume: Resume | str | os.PathLike[str] | None = None,
+            loop_closure: bool = False) -> dict:
     """Map the scans of a bag's `scan_topic` into the folder `out` (the products of
-    `scanmap map`, `write_products`); returns the report (also out/report.json)."""
+    `scanmap map`, `write_products`); returns the report (also out/report.json). resume:
+    as for `map_to_folder`."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start, start_cpu = time.perf_counter(), time.process_time()
     scans = BagScans(bag, scan_topic, odom_topic)
     config = bag_config(scans, config, loop_closure)
-    mapper = Mapper.load(resume, offline=True) if resume else Mapper(config=config,
-                                                                     offline=True)
+    resume = Resume.of(resume)
+    mapper = resume.mapper() if resume else Mapper(config=config, offline=True)
     outcome: Counter[str] = Counter()
-    stamps = []
+    stamps: list[float] = []
+    notes: list[str] = []
     for done, scan in enumerate(scans, start=1):
-        update = mapper.add(scan)
+        update = add_located(mapper, scan, notes)
+        if update is None:
+            continue
         stamps.append(scan.stamp)
         outcome.update({update.registration.status.value: 1, "fused": int(update.fused),
                         "degenerate": int(update.registration.degenerate)})
         if progress:
             progress(done, scans.count, update)
+    localised = localisation_summary(mapper, notes)
     mapper.close_loops()  # nothing to do without loop closure
     wall, cpu = time.perf_counter() - start, time.process_time() - start_cpu
     files = write_products(mapper, map_segmentation(mapper.grid, mapper.config), out)
@@ -190,7 +197,8 @@ def map_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str], scan_topic
         "format": REPORT_FORMAT,
         "input": {"path": str(scans.path), "kind": "bag", "topic": scan_topic,
                   "type": scans.msgtype, "odometry": odom_topic, "scans": len(stamps),
-                  "resumed": None if resume is None else str(resume)},
+                  "resumed": None if resume is None else str(resume.path),
+                  "localised": localised},
         "mapping": {"wall_seconds": wall, "seconds_per_scan": wall / max(len(stamps), 1),
                     "process_cpu_seconds": cpu, "recorded_seconds": recorded,
                     "speedup": recorded / wall if recorded else None, "workers": 1,
@@ -198,7 +206,7 @@ def map_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str], scan_topic
         "stages": {},
         "registration": dict(sorted(outcome.items())),
         "loops": loop_summary(mapper),
-        "notes": [],
+        "notes": notes,
         "files": files,
         "errors": {"available": False, "reason": f"no ground truth in a bag ({scans.path})"},
     }

@@ -27,7 +27,7 @@ def test_a_recording_becomes_a_map_with_its_errors(office_recording, tmp_path, c
 
     report = json.loads((out / "report.json").read_text())
     assert report["input"] == {"path": str(office_recording), "kind": "recording", "scans": 1,
-                               "resumed": None}
+                               "resumed": None, "localised": None}
     record = Recording.open(office_recording).scans[0]
     assert report["mapping"]["recorded_seconds"] == pytest.approx(
         record.frame_times[-1] - record.frame_times[0] + 1 / 25, rel=0.01)
