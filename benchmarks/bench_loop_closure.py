@@ -347,12 +347,6 @@ def run(quick: bool = False, only: str | None = None) -> list[dict]:
 
 
 if __name__ == "__main__":
-    import argparse
-    import json
+    from benchmarks.carmen_cli import run_from_command_line
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="freiburg-101 only")
-    parser.add_argument("--only", help="only logs whose name contains this")
-    args = parser.parse_args()
-    for row in run(quick=args.quick, only=args.only):
-        print(json.dumps(row, indent=1, default=str))
+    run_from_command_line(run, __doc__)

@@ -50,7 +50,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from scanmap.graph import LoopCloser
-from scanmap.graph.localise import Localisation, NotLocalised, localise
+from scanmap.graph.localise import Localisation, NotLocalised, Session
 from scanmap.grid.height_grid import HeightGrid, InsertStats
 from scanmap.grid.rays import scan_rays
 from scanmap.io.trajectory import Trajectory
@@ -136,65 +136,78 @@ class Mapper:
         self._rebuilds: GridRebuilder | SubmapRebuilder | None = None
         # A loaded map to locate the next scan in first (`load(localise=True)`): its path
         # and the hints; then where that scan was found.
-        self._start: tuple[str, list[np.ndarray]] | None = None
+        self._start: tuple[str, Session] | None = None
+        self._pending: list[tuple[Scan, RegistrationResult]] = []  # registered, not located
         self.localisation: Localisation | None = None
+        self._session = np.eye(4)  # map <- registration frame: moved once located
 
     # -- mapping -------------------------------------------------------------------------
     def add(self, scan: Scan) -> MapUpdate:
         """Register, fuse and publish one scan (see the module docstring)."""
         clock = StageClock()
         with self._lock:
-            if self._start is not None:
-                with clock.stage("localise"):
-                    self._localise(scan)
             closer = self.loop_closer
             if closer is not None and (self._rebuild or closer.version != self._applied):
                 with clock.stage("loop_closure"):
                     self._follow_graph()
             with clock.stage("register"):
                 result = self.registration.register(scan)
-            pose = result.pose
-            if closer is not None:
-                closer.add(result.pose, result, scan.points)
-                pose = closer.correction() @ result.pose
-                self._contributions.append(None)
-            self._stamps.append(float(scan.stamp))
-            self._poses.append(pose)
-            self._index.append(int(scan.index))
-            self._status.append(result.status.value)
-            self._odometry.append(scan.odom_start if scan.has_odometry else _NO_POSE)
-            fused = result.ok and len(scan) > 0
-            stats = None
-            if fused:  # a MapError here (beyond the extent) leaves the pose recorded
-                with clock.stage("fuse"):
-                    stats = self._fuse(scan, pose)
-            if closer is not None:
-                self._prepare_submaps()
+            if self._start is not None:
+                with clock.stage("localise"):
+                    self._localise(scan, result)
+                for kept, kept_result in self._pending[:-1]:
+                    self._record(kept, kept_result, StageClock())
+                self._pending = []
+            pose, fused, stats = self._record(scan, result, clock)
         if fused and self.config.update_obstacles:
             with clock.stage("obstacles"):
                 self.obstacles.update(self.grid, self._obstacle_bounds())
         return MapUpdate(int(scan.index), float(scan.stamp), pose, result, fused, stats, clock)
 
+    def _record(self, scan: Scan, result: RegistrationResult, clock: StageClock
+                ) -> tuple[np.ndarray, bool, InsertStats | None]:
+        """Put a registered scan in the graph, the trajectory and, if registered, the grid
+        (call with the lock held): (its pose in the map, fused, the grid's account)."""
+        closer = self.loop_closer
+        pose = self._session @ result.pose
+        if closer is not None:
+            closer.add(pose, result, scan.points)
+            pose = closer.correction() @ pose
+            self._contributions.append(None)
+        self._stamps.append(float(scan.stamp))
+        self._poses.append(pose)
+        self._index.append(int(scan.index))
+        self._status.append(result.status.value)
+        self._odometry.append(scan.odom_start if scan.has_odometry else _NO_POSE)
+        fused = result.ok and len(scan) > 0
+        stats = None
+        if fused:  # a MapError here (beyond the extent) leaves the pose recorded
+            with clock.stage("fuse"):
+                stats = self._fuse(scan, pose)
+        if closer is not None:
+            self._prepare_submaps()
+        return pose, fused, stats
+
     @property
     def localising(self) -> bool:
-        """Whether the next scan is first to be located in the loaded map."""
+        """Whether the session is still to be located in the loaded map."""
         return self._start is not None
 
-    def _localise(self, scan: Scan) -> None:
-        """Locate `scan` in the loaded map (`scanmap.graph.localise`) and restart
-        registration there, the scan's graph node hung on the keyframe it matched (call
-        with the lock held). Raises NotLocalised, naming the map, with nothing recorded:
-        the next scan tries again."""
-        path, hints = self._start
+    def _localise(self, scan: Scan, result: RegistrationResult) -> None:
+        """Locate the session in the loaded map (`scanmap.graph.localise.Session`): once
+        located, registration goes on in the map frame (`_session`) and the first scan's
+        graph node hangs on the keyframe matched; until then NotLocalised, naming the map,
+        with the scan kept (call with the lock held)."""
+        path, session = self._start
+        self._pending.append((scan, result))
         try:
-            found = localise(self.loop_closer, scan.points, hints)
+            found = session.add(scan.points, result.pose, result.ok)
         except NotLocalised as exc:
-            raise NotLocalised(f"{path}: {exc}") from None
-        c = self.config
+            raise NotLocalised(f"{path}: {exc}; scan {scan.index} is kept, to be mapped once "
+                               f"the session is located") from None
         self._start = None
         self.localisation = found
-        self.registration = ScanOdometry(
-            c.registration, c.noise, invert_pose(self.loop_closer.correction()) @ found.pose)
+        self._session = found.pose @ invert_pose(result.pose)
         self.loop_closer.join(found.node, found.information)
         self._recent.clear()
 
@@ -424,11 +437,13 @@ class Mapper:
         running between sessions (or give scans without odometry). config: replaces the
         saved settings except the grid's.
 
-        localise: the robot may have been moved since: the next scan is first located in
-        the map (`scanmap.graph.localise`: near `hint`, a 4x4 pose in the map, or where
-        the robot stopped, else by place), and mapping goes on from there. Needs a map
-        saved with loop closure (its keyframes); `add` raises NotLocalised, naming the
-        file and recording nothing, while no place matches.
+        localise: the robot may have been moved since: the new session's scans are
+        registered in a frame of their own and located in the map (`scanmap.graph.localise`:
+        near `hint`, a 4x4 pose in the map where the robot stands at the first scan, or
+        where it stopped, else by place), the newest with those of the last
+        `context_distance` of travel; then mapping goes on in the map. Needs a map saved
+        with loop closure (its keyframes). Until located, `add` raises NotLocalised,
+        naming the file; the scans are kept and mapped once it is.
         """
         state = load_state(path)
         config = state.config if config is None else replace(config, grid=state.config.grid)
@@ -447,7 +462,12 @@ class Mapper:
             mapper._kept = [(state.points, state.point_colors)]
         if mapper.loop_closer is not None:
             mapper._resume_loops(state)
-        if last is not None and len(state.resume_points):
+        if localise:  # a new session: registered in its own frame until located
+            hints = [np.asarray(hint, dtype=np.float64)] if hint is not None else \
+                [] if last is None else [last]
+            mapper._start = (os.fspath(path), Session(mapper.loop_closer, hints))
+            mapper.registration = ScanOdometry(config.registration, config.noise)
+        elif last is not None and len(state.resume_points):
             odometry = state.odometry[-1]
             mapper.registration.register_points(
                 state.resume_points, stamp=float(state.stamps[-1]),
@@ -458,10 +478,6 @@ class Mapper:
             mapper._position = (float(last[0, 3]), float(last[1, 3]))
             if config.update_obstacles:
                 mapper.obstacles.update(mapper.grid, mapper._obstacle_bounds())
-        if localise:
-            hints = [np.asarray(hint, dtype=np.float64)] if hint is not None else \
-                [] if last is None else [last]
-            mapper._start = (os.fspath(path), hints)
         return mapper
 
 

@@ -18,9 +18,8 @@ from scanmap_driver.transforms import pose_to_se2
 @dataclass(frozen=True)
 class Resume:
     """A map.npz to continue. localise: the robot may have been moved since the map was
-    saved, so the first scan is located in it (`Mapper.load(localise=True)`), near `hint`
-    (4x4 pose in the map) when given; scans before the first located one are not mapped
-    but noted in the report."""
+    saved, so its scans are located in it first (`Mapper.load(localise=True)`), near
+    `hint` (4x4 pose in the map) when given; the report notes the scans it took."""
 
     path: Path
     localise: bool = False
@@ -37,11 +36,12 @@ class Resume:
 
 
 def add_located(mapper: Mapper, scan: Scan, notes: list[str]) -> MapUpdate | None:
-    """`mapper.add(scan)`, or None with a note while it cannot be located in the map."""
+    """`mapper.add(scan)`, or None with a note while the session is not yet located in the
+    map (the Mapper keeps the scan and maps it once it is)."""
     try:
         return mapper.add(scan)
     except NotLocalised as exc:
-        notes.append(f"scan {scan.index}: not mapped: {exc}")
+        notes.append(f"scan {scan.index}: {exc}")
         return None
 
 
