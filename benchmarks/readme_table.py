@@ -33,6 +33,8 @@ HIGHLIGHTS = [
     ("grid", "distance field", ""),
     ("grid", "distance query", ""),
     ("grid", "nearest query", ""),
+    ("loop_closure", "loop closure", "ours: ScanOdometry + LoopCloser"),
+    ("localise", "localisation", ""),
     ("mapping", "pipeline", "scanmap map"),
     ("mapping", "mapper (online)", ""),
     ("simulator", "simulator", "sampled ray casting"),
