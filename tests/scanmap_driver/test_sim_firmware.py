@@ -165,4 +165,6 @@ def test_angle_history_interpolates_the_motion(firmware, terminal):
     times, angles = firmware.heading_profile(now - 0.2, now + 0.01)
     assert times[0] <= now - 0.2 and times[-1] == now + 0.01
     assert np.all(np.diff(times) > 0) and np.all(np.diff(angles) > 0)
-    assert np.allclose(angles, [firmware.angle_at(t) for t in times])
+    # The recorded samples; the last, `end`, was extrapolated then and is interpolated now
+    # that the firmware thread has moved on (a race the test lost under load).
+    assert np.allclose(angles[:-1], [firmware.angle_at(t) for t in times[:-1]])
