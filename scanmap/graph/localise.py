@@ -36,7 +36,7 @@ import numpy as np
 from scanmap.graph.descriptor import compare, describe
 from scanmap.graph.loop_closure import LoopCloser, LoopClosureConfig
 from scanmap_driver.errors import MapError
-from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose
+from scanmap_driver.transforms import invert_pose, pose_to_se2, se2_to_pose, transform_points
 
 AMBIGUOUS_FITNESS = 0.1  # a second place within this fitness of the best makes it ambiguous
 NEIGHBOURS = 5  # scans near a place keyframe tried as where the robot stands
@@ -157,9 +157,7 @@ def recent_context(points: Sequence[np.ndarray], poses: Sequence[np.ndarray],
             travelled += float(np.linalg.norm(poses[k + 1][:2, 3] - poses[k][:2, 3]))
         if travelled > distance:
             break
-        relative = to_newest @ poses[k]
-        parts.append(np.asarray(points[k], dtype=np.float64) @ relative[:3, :3].T
-                     + relative[:3, 3])
+        parts.append(transform_points(to_newest @ poses[k], points[k]))
     return np.concatenate(parts)
 
 

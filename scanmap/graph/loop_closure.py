@@ -417,16 +417,13 @@ class LoopCloser:
         return (Loop(candidate, node, how, result.fitness, moved),
                 Edge(candidate, node, result.pose, self.loop_information(result), loop=True))
 
-    def match(self, points: np.ndarray, candidate: int, guess: np.ndarray,
-              min_fitness: float | None = None, max_rmse: float | None = None
+    def match(self, points: np.ndarray, candidate: int, guess: np.ndarray
               ) -> RegistrationResult | None:
         """ICP of (N, 3) `points` onto the local map around node `candidate` (its frame),
         from `guess` (their pose in that frame); the result if it converged, constrains
-        every direction and matches at least `min_fitness` of the points within
-        `max_rmse` (by default a loop's), else None."""
+        every direction and matches as a loop must (`min_fitness`, `max_rmse`), else None.
+        """
         c, r = self.config, self.registration
-        min_fitness = c.min_fitness if min_fitness is None else min_fitness
-        max_rmse = c.max_rmse if max_rmse is None else max_rmse
         target = LocalMap(voxel_size=r.map_voxel_size, radius=1e6, max_count=r.map_max_count,
                           min_points=r.min_plane_points, flatness=r.flatness,
                           scans_2d=r.scans_2d)
@@ -439,8 +436,8 @@ class LoopCloser:
         source = prepare_source(points, settings)
         prior = Prior(guess, np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 1.0]))
         result = register_scan(source, target, prior, r.max_threshold, settings)
-        if not result.ok or result.degenerate or result.fitness < min_fitness \
-                or result.inlier_rmse > max_rmse:
+        if not result.ok or result.degenerate or result.fitness < c.min_fitness \
+                or result.inlier_rmse > c.max_rmse:
             return None
         return result
 

@@ -134,8 +134,8 @@ class Mapper:
         self._base: dict[str, np.ndarray] | None = None
         # The rebuild thread's, over _base; its submaps are built as scans come.
         self._rebuilds: GridRebuilder | SubmapRebuilder | None = None
-        # A loaded map to locate the next scan in first (`load(localise=True)`): its path
-        # and the hints; then where that scan was found.
+        # A loaded map to locate the new session in first (`load(localise=True)`): its
+        # path and the Session; the scans registered meanwhile; then where it was found.
         self._start: tuple[str, Session] | None = None
         self._pending: list[tuple[Scan, RegistrationResult]] = []  # registered, not located
         self.localisation: Localisation | None = None

@@ -41,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="continue this map.npz (a previous run's) with INPUT's scans")
     parser.add_argument("--localise", action="store_true",
                         help="with --resume: the robot may have been moved since the map was "
-                             "saved; locate its first scan in the map (by place, or near "
+                             "saved; locate its scans in the map (by place, or near "
                              "--hint) before mapping on (needs a map saved with loop closure)")
     parser.add_argument("--hint", type=_pose_hint, default=None, metavar="X,Y,YAW",
                         help="with --resume: --localise near this pose in the map (m, m, deg; "
