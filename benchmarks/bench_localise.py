@@ -33,13 +33,14 @@ import time
 
 import numpy as np
 
+from benchmarks.bench_loop_closure import LOGS
 from benchmarks.bench_registration import Sequence, carmen
+from benchmarks.carmen_logs import carmen_logs
 from scanmap.graph import LoopCloser, LoopClosureConfig
 from scanmap.graph.localise import Localisation, NotLocalised, Session
 from scanmap.registration import ScanOdometry
 from scanmap_driver.transforms import invert_pose, pose_to_se2
 
-LOGS = ("intel", "aces", "fhw", "freiburg-101", "belgioioso", "edmonton", "acapulco")
 STRIDE = 3  # a session starts at every STRIDE-th scan of the second half that qualifies
 REVISIT_M, REVISIT_DEG = 1.0, 30.0  # a revisit: this near a mapped scan, facing alike
 ELSEWHERE_M = 5.0  # a place the map never saw: this far from every mapped scan
@@ -142,7 +143,7 @@ def measure(seq: Sequence, config: LoopClosureConfig | None = None) -> dict:
 
 def run(quick: bool = False, only: str | None = None) -> list[dict]:
     """A row per log (`quick`: freiburg-101 alone); `only`: logs whose name contains it."""
-    logs = ("freiburg-101",) if quick else LOGS
+    logs = ("freiburg-101",) if quick else carmen_logs(LOGS)
     return [measure(carmen(name, None)) for name in logs if only is None or only in name]
 
 

@@ -65,6 +65,7 @@ import time
 import numpy as np
 
 from benchmarks.bench_registration import Sequence, _scores, carmen, run_ours
+from benchmarks.carmen_logs import carmen_logs
 from benchmarks.isolation import PeerFailed, run_isolated
 from scanmap.evaluation.trajectory_errors import ate_rmse
 from scanmap.graph import Edge, LoopCloser, LoopClosureConfig, PoseGraph
@@ -79,6 +80,7 @@ from scanmap.mapping.rebuild import (
 from scanmap.registration import ScanOdometry
 from scanmap_driver.transforms import invert_pose, se2_to_pose
 
+# The shared logs in the order of the tables; `carmen_logs` adds any other one present.
 LOGS = ("intel", "aces", "fhw", "freiburg-101", "belgioioso", "edmonton", "acapulco")
 
 
@@ -339,7 +341,7 @@ def submap_rebuilds(poses: np.ndarray, kept: list, moved: np.ndarray) -> dict:
 def run(quick: bool = False, only: str | None = None) -> list[dict]:
     """A row per log (with `quick` freiburg-101 alone: the shortest log, 292 scans, that
     closes loops); `only`: logs whose name contains it."""
-    logs = ("freiburg-101",) if quick else LOGS
+    logs = ("freiburg-101",) if quick else carmen_logs(LOGS)
     rows = [compare(carmen(name, None)) for name in logs if only is None or only in name]
     if only is None or only in "rebuild":
         rows += rebuild_3d(50 if quick else REBUILD_SCANS)

@@ -1,9 +1,10 @@
 """Registration against its peers, side by side on the same scans and the same odometry.
 
 Sequences: the simulator's corridor and office (ideal scans; in the full run also scans
-processed from rendered frames), and the seven real CARMEN logs (`LOGS`: raw ODOM as the
-prior, the corrected FLASER poses as reference; the quick run takes the first
-`QUICK_SCANS` scans of each of `QUICK_LOGS`). Ours has one configuration for every log.
+processed from rendered frames), and the real CARMEN logs (`carmen_logs`: the seven shared
+ones and any other corrected log beside them; raw ODOM as the prior, the corrected FLASER
+poses as reference; the quick run takes the first `QUICK_SCANS` scans of each of
+`QUICK_LOGS`). Ours has one configuration for every log.
 
 Methods, all single-threaded, all started from the same first pose:
 * ours: `ScanOdometry` (scan-to-local-map point-to-plane ICP, planar, odometry prior).
@@ -45,6 +46,7 @@ from functools import partial
 
 import numpy as np
 
+from benchmarks.carmen_logs import carmen_logs, carmen_path
 from benchmarks.isolation import PeerFailed, run_isolated
 from benchmarks.timing import first_call_time
 from scanmap.datasets.carmen import read_carmen
@@ -60,9 +62,7 @@ from scanmap.registration import (
 from scanmap_driver.scan import Scan
 from scanmap_driver.transforms import invert_pose, se2_to_pose
 
-REAL = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "real", "carmen")
 EXTRUDE_HEIGHTS = (0.0, 0.1, 0.2, 0.3, 0.4)
-LOGS = ("intel", "aces", "acapulco", "belgioioso", "edmonton", "fhw", "freiburg-101")
 QUICK_SCANS = 40  # scans per real log in the quick run (about 40 m each)
 QUICK_LOGS = ("intel", "aces", "acapulco")  # the quick run: 180 and 181 beams
 STARTS = (0, 7, 15, 23, 31, 40, 50)  # first scans of the full run's real-log registrations
@@ -135,7 +135,7 @@ def rendered(scene_name: str, count: int, seed: int = 0) -> Sequence:
 
 def carmen(name: str, count: int | None) -> Sequence:
     """A real CARMEN log: FLASER scans with the raw odometry, corrected poses as reference."""
-    log = read_carmen(os.path.join(REAL, f"{name}-corrected.log.gz"))
+    log = read_carmen(carmen_path(name))
     count = len(log) if count is None else min(count, len(log))
     scans = []
     for i in range(count):
@@ -498,13 +498,14 @@ def run(quick: bool = False, only: str | None = None) -> list[dict]:
     """Rows for every sequence (fewer and shorter ones with `quick`).
 
     only: keep just the sequences whose key contains it ("intel", "real", "corridor";
-    keys: sim-corridor, sim-office, real-<log> for each of `LOGS`, rendered-office,
+    keys: sim-corridor, sim-office, real-<log> for each log of `carmen_logs`, rendered-office,
     rendered-corridor); the 20,000-point timing row comes with "timing" or no filter.
     """
     builders = {"sim-corridor": partial(simulated, "corridor", 13 if quick else None),
                 "sim-office": partial(simulated, "office", 6 if quick else None)}
+    logs = carmen_logs()
     builders |= {f"real-{name}": partial(carmen, name, QUICK_SCANS if quick else None)
-                 for name in (QUICK_LOGS if quick else LOGS)}
+                 for name in logs if not quick or name in QUICK_LOGS}
     if not quick:
         builders |= {"rendered-office": partial(rendered, "office", 6),
                      "rendered-corridor": partial(rendered, "corridor", 8)}
