@@ -1,7 +1,10 @@
 """What a planar lidar misses, against the simulator's truth: drop-offs, ramps, steps, dark
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
-    .venv/bin/python -m benchmarks.bench_hazards [--quick]
+    .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...]
+
+With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
+takes them): a method must hold on hazard scenes it was not built on.
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -62,7 +65,7 @@ from scanmap_driver.sim.raster import DROP_OFF as TRUE_DROP_OFF
 from scanmap_driver.sim.raster import FLOOR as TRUE_FLOOR
 from scanmap_driver.sim.raster import OBSTACLE as TRUE_OBSTACLE
 from scanmap_driver.sim.raster import OUTSIDE, TruthRaster, truth_raster
-from scanmap_driver.sim.scene import Scene, builtin_scene
+from scanmap_driver.sim.scene import Scene, builtin_scene, resolve_scene
 
 ROBOT = RobotShape()
 PARAMS = FloorConfig()
@@ -326,6 +329,16 @@ def measure(quick: bool) -> dict[str, dict[str, float]]:
             "timing": time_per_scan(4 if quick else 8)}
 
 
+def scene_measures(scene: Scene, scans: int | None = None) -> dict[str, dict[str, float]]:
+    """The measures of `measure` on one scene, for hazard scenes other than the built-in
+    ones: drop-offs and ramps (`hazard_run`), and ghosts and walls where it has people
+    (`people_run`)."""
+    out = {"hazards": hazard_run(scans, scene=scene)}
+    if scene.people:
+        out["people"] = people_run(scans, scene=scene)
+    return out
+
+
 def run(quick: bool = False) -> list[dict]:
     """Benchmark rows (see the module docstring) for `python -m benchmarks`."""
     m = measure(quick)
@@ -366,8 +379,16 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer scans")
+    parser.add_argument("--scene", action="append", default=[], metavar="SCENE",
+                        help="measure this scene file (or built-in scene) instead: the "
+                        "drop-off and ramp measures, and with people the ghost ones; "
+                        "repeatable")
     args = parser.parse_args(argv)
-    print(json.dumps(measure(args.quick), indent=1))
+    scans = 8 if args.quick else None
+    if not args.scene:
+        print(json.dumps(measure(args.quick), indent=1))
+    for text in args.scene:
+        print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))
     return 0
 
 

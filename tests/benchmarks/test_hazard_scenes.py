@@ -1,0 +1,24 @@
+"""The hazards benchmark measures a scene file it was not built on (`--scene`)."""
+
+from __future__ import annotations
+
+import json
+
+from benchmarks.bench_hazards import main
+from scanmap_driver.sim.scene import builtin_scene
+
+
+def test_a_scene_file_gets_the_drop_off_and_ramp_measures(tmp_path, capsys):
+    """The built-in hazards scene turned by 30 deg and cut to its first three scans, saved
+    as a file: drop-offs are found where seen and none is free, its ramps are measured."""
+    data = builtin_scene("hazards").moved(0.013, 0.021, 0.52).to_dict()
+    data["scan_poses"] = data["scan_poses"][:3]
+    path = tmp_path / "turned.json"
+    path.write_text(json.dumps(data))
+    assert main(["--scene", str(path)]) == 0
+    measures = json.loads(capsys.readouterr().out)[str(path)]
+    hazards = measures["hazards"]
+    assert hazards["drop_cells"] > 0 and hazards["drop_found"] > 0  # three scans see part
+    assert hazards["drop_free_any_scan"] == 0
+    assert 0.0 < hazards["ramp_f1"] <= 1.0
+    assert "people" not in measures  # a scene without people has no ghost measures
