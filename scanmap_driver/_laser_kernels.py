@@ -640,15 +640,25 @@ SMOOTH = np.exp(-0.5 * (np.arange(-3, 4) / 1.0) ** 2)  # Gaussian, sigma 1.0 px
 
 
 @njit(cache=True, nogil=True, inline="always")
-def smooth_profile(vals: np.ndarray, n: int, out: np.ndarray) -> None:
-    """out[:n] = vals[:n] convolved with SMOOTH (renormalised where cut by the ends).
+def smooth_profile(vals: np.ndarray, n: int, lo: int, hi: int, out: np.ndarray) -> None:
+    """out[lo:hi] = vals[:n] convolved with SMOOTH there (renormalised where cut by the
+    ends); the fit reads only the positions around the peak, a third of the buffer.
 
     Pixel-scale noise (sensor, laser speckle, MJPG blocks) moves the subpixel estimators,
     most of all the samples at the top that set the centroid's level; a symmetric kernel
-    leaves a symmetric peak where it is."""
+    leaves a symmetric peak where it is. Inside the line the taps are fixed and their sum
+    is added in the same order as at the ends, so each value is the same to the bit."""
     r = SMOOTH.size // 2
-    for i in range(n):
+    total = 0.0
+    for k in range(SMOOTH.size):
+        total += SMOOTH[k]
+    for i in range(lo, hi):
         acc = 0.0
+        if r <= i < n - r:
+            for k in range(SMOOTH.size):
+                acc += SMOOTH[k] * vals[i - r + k]
+            out[i] = acc / total
+            continue
         wsum = 0.0
         for k in range(max(0, i - r), min(n, i + r + 1)):
             w = SMOOTH[k - i + r]
@@ -837,7 +847,9 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
                         wide)
                 d = clipped_centre(wide, n_wide, x0 - w_first, sat)
         else:
-            smooth_profile(vals, n_buf, smooth)
+            reach_fit = max(offset + side - 1, half)  # what _background and g read
+            smooth_profile(vals, n_buf, max(0, k0 - reach_fit),
+                           min(n_buf, k0 + reach_fit + 1), smooth)
             bg = _background(smooth, n_buf, k0, offset, side)
             for k in range(n_win):
                 g[k] = smooth[w0 + k] - bg
