@@ -42,6 +42,7 @@ from scanmap.registration import ScanOdometry
 from scanmap_driver.transforms import invert_pose, pose_to_se2
 
 STRIDE = 3  # a session starts at every STRIDE-th scan of the second half that qualifies
+QUICK_STRIDE = 12  # the quick run's (freiburg-101: 10 sessions instead of 39)
 REVISIT_M, REVISIT_DEG = 1.0, 30.0  # a revisit: this near a mapped scan, facing alike
 ELSEWHERE_M = 5.0  # a place the map never saw: this far from every mapped scan
 SESSION_M = 8.0  # a session not located after this much travel gives up
@@ -106,12 +107,13 @@ def error(closer: LoopCloser, seq: Sequence, found: Localisation, k: int
     return float(np.hypot(x, y)), float(np.degrees(abs(yaw)))
 
 
-def measure(seq: Sequence, config: LoopClosureConfig | None = None) -> dict:
-    """The row of one log (module docstring)."""
+def measure(seq: Sequence, config: LoopClosureConfig | None = None,
+            stride: int = STRIDE) -> dict:
+    """The row of one log (module docstring), sessions at every `stride`-th scan."""
     closer = mapped_half(seq, config)
     seconds: list[float] = []
     half = len(seq.scans) // 2
-    starts = [(k, *nearest_mapped(seq, k)) for k in range(half, len(seq.scans), STRIDE)]
+    starts = [(k, *nearest_mapped(seq, k)) for k in range(half, len(seq.scans), stride)]
     try:
         revisits = [session(closer, seq, k, False, seconds)
                     for k, _, revisit in starts if revisit]
@@ -142,9 +144,11 @@ def measure(seq: Sequence, config: LoopClosureConfig | None = None) -> dict:
 
 
 def run(quick: bool = False, only: str | None = None) -> list[dict]:
-    """A row per log (`quick`: freiburg-101 alone); `only`: logs whose name contains it."""
+    """A row per log (`quick`: freiburg-101 alone, a session at every QUICK_STRIDE-th scan);
+    `only`: logs whose name contains it."""
     logs = ("freiburg-101",) if quick else carmen_logs(LOGS)
-    return [measure(carmen(name, None)) for name in logs if only is None or only in name]
+    return [measure(carmen(name, None), stride=QUICK_STRIDE if quick else STRIDE)
+            for name in logs if only is None or only in name]
 
 
 if __name__ == "__main__":
