@@ -63,7 +63,7 @@ def test_a_person_track_must_run_forward():
 
 
 def test_hazard_scenes_round_trip_through_json():
-    for name in ("hazards", "people"):
+    for name in ("hazards", "people", "workshop"):
         scene = builtin_scene(name)
         assert Scene.from_dict(scene.to_dict()).to_dict() == scene.to_dict()
 
