@@ -24,7 +24,7 @@ from scanmap.navigation.floor import FloorConfig
 from scanmap.navigation.obstacles import ObstacleMap, ObstacleSnapshot, QueryStatus
 from scanmap_driver.sim import RASTER_DROP_OFF, RASTER_FLOOR, Scene, builtin_scene, truth_raster
 
-SCANS = None  # all 17 poses
+SCANS = None  # every pose of the scene
 
 
 def mapped_with_truth(name: str):
@@ -214,9 +214,10 @@ def test_each_workshop_region_is_traversable_as_the_robot_allows(workshop, name,
                    "corner of a pit, seen from beside it) is filled as floor between the "
                    "laser's samples (FloorConfig: max_hole, max_gap)")
 def test_the_sharp_corner_of_a_pit_is_never_free():
-    data = builtin_scene("workshop").to_dict()
-    data["floor_regions"][-1] = {"polygon": [[8.0, -1.8], [8.8, -1.0], [8.0, -0.2]],
-                                 "height": -0.3, "name": "wedge pit"}
+    data = builtin_scene("workshop").to_dict()  # its rectangular pit made a wedge
+    data["floor_regions"] = [r for r in data["floor_regions"] if r["name"] != "pit"] + [
+        {"polygon": [[8.0, -1.8], [8.8, -1.0], [8.0, -0.2]], "height": -0.3,
+         "name": "wedge pit"}]
     scene = Scene.from_dict(data)
     measures = hazard_run(scene=scene)
     assert measures["drop_free_any_scan"] == 0
