@@ -1,10 +1,11 @@
 """What a planar lidar misses, against the simulator's truth: drop-offs, ramps, steps, dark
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
-    .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...]
+    .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
-takes them): a method must hold on hazard scenes it was not built on.
+takes them); with `--random N`, on N random hazard rooms (`random_rooms`): a method must
+hold on hazard scenes it was not built on.
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -22,6 +23,10 @@ slope). Rows:
   edges fall inside cells and at angles to them, not on the cells' boundaries as built:
   the worst free drop-off count after any scan, the worst edge, the least and the mean
   ramp F1 over PLACEMENTS placements.
+* random rooms: the same measures on RANDOM_ROOMS rooms drawn afresh (`random_rooms`: two
+  holes, a step down, a pit, a platform, a low step and two ramps, sizes, depths, slopes
+  and angles drawn from each seed): the rooms with a drop-off cell free after some scan,
+  the worst such count and edge, the least and the mean ramp F1.
 * ghost cells: cells within SEE_THROUGH of the robot (farther, nothing sees through the
   space a person left) that a person left at least three scans ago (free in the static
   truth, covered by nobody since) and the map still calls OBSTACLE, summed over the
@@ -47,6 +52,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from benchmarks.random_rooms import random_room
 from scanmap.evaluation.ground_truth import drop_off_errors
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
@@ -76,6 +82,7 @@ BAND_BIN = 0.025  # m, height bins of the robot's band for the see-through truth
 RAY_STEP = 0.01  # m, sampling step along the true rays for the see-through truth
 SEE_THROUGH_SHARE = 0.95  # share of the band's bins crossed: the cell was seen through
 PLACEMENTS = 8  # placements of the hazards scene on the cells (`placed_run`)
+RANDOM_ROOMS = 12  # random hazard rooms measured (`random_run`)
 CELL = GridConfig().resolution  # m
 
 
@@ -251,6 +258,25 @@ def placed_run(count: int, scans: int | None = None) -> dict[str, float]:
             "ramp_f1_mean": float(np.mean([r["ramp_f1"] for r in runs]))}
 
 
+def random_run(count: int, scans: int | None = None) -> dict[str, float]:
+    """`hazard_run` on `count` random hazard rooms (`random_rooms.random_room`, seeds 1 to
+    count): the worst and the mean over them, and the rooms with a free drop-off cell."""
+    return rooms_summary([hazard_run(scans, scene=random_room(seed))
+                          for seed in range(1, count + 1)])
+
+
+def rooms_summary(runs: list[dict[str, float]]) -> dict[str, float]:
+    """The worst and the mean of `hazard_run` results over rooms (`random_run`)."""
+    return {"rooms": len(runs),
+            "rooms_with_free_drop_off": sum(r["drop_free_any_scan"] > 0 for r in runs),
+            "drop_free_any_scan": max(r["drop_free_any_scan"] for r in runs),
+            "drop_free": max(r["drop_free"] for r in runs),
+            "edge_error_cells": max(r["edge_error_cells"] for r in runs),
+            "edge_within_one": min(r["edge_within_one"] for r in runs),
+            "ramp_f1_min": float(np.nanmin([r["ramp_f1"] for r in runs])),
+            "ramp_f1_mean": float(np.nanmean([r["ramp_f1"] for r in runs]))}
+
+
 def person_cells(scene: Scene, truth_shape_of: Segmentation, scans: int) -> np.ndarray:
     """(scans, ny, nx) cells each scan's people cover (obstacles of `at_scan` not static)."""
     static = truth_classes(truth_shape_of, truth_raster(scene)) == TRUE_OBSTACLE
@@ -325,6 +351,7 @@ def measure(quick: bool) -> dict[str, dict[str, float]]:
     """Every measure of the module docstring (fewer scans with `quick`)."""
     return {"hazards": hazard_run(8 if quick else None),
             "placed": placed_run(3 if quick else PLACEMENTS, 8 if quick else None),
+            "random": random_run(3 if quick else RANDOM_ROOMS, 8 if quick else None),
             "people": people_run(24 if quick else None),
             "timing": time_per_scan(4 if quick else 8)}
 
@@ -343,6 +370,7 @@ def run(quick: bool = False) -> list[dict]:
     """Benchmark rows (see the module docstring) for `python -m benchmarks`."""
     m = measure(quick)
     h, placed, people, timing = m["hazards"], m["placed"], m["people"], m["timing"]
+    rooms = m["random"]
     per_scan = 1e-3 * timing["per_scan_ms"]
     settings = "ideal scans at true poses, 5 cm cells, default robot"
     return [
@@ -357,6 +385,11 @@ def run(quick: bool = False) -> list[dict]:
          f"{placed['placements']} placements, {settings}; worst over them",
          "median_s": None, "error": placed["drop_free_any_scan"],
          "error_unit": "cells after any scan (goal 0)", **placed, "peers": {}},
+        {"stage": "hazards", "method": "drop-off cells free in random hazard rooms",
+         "settings": f"{rooms['rooms']} rooms drawn afresh (benchmarks.random_rooms, seeds "
+         f"1-{rooms['rooms']}), {settings}; worst over them",
+         "median_s": None, "error": rooms["drop_free_any_scan"],
+         "error_unit": "cells after any scan (goal 0)", **rooms, "peers": {}},
         {"stage": "hazards", "method": "ghost cells three scans after a person left",
          "settings": f"built-in people scene, {settings}", "median_s": None,
          "error": people["ghost_cells"], "error_unit": f"cells of {people['left_cells']} "
@@ -383,9 +416,16 @@ def main(argv: list[str] | None = None) -> int:
                         help="measure this scene file (or built-in scene) instead: the "
                         "drop-off and ramp measures, and with people the ghost ones; "
                         "repeatable")
+    parser.add_argument("--random", type=int, metavar="N",
+                        help="instead: the drop-off and ramp measures on N random hazard "
+                        "rooms (benchmarks.random_rooms), each and the worst")
     args = parser.parse_args(argv)
     scans = 8 if args.quick else None
-    if not args.scene:
+    if args.random:
+        rooms = {f"random_room({seed})": hazard_run(scans, scene=random_room(seed))
+                 for seed in range(1, args.random + 1)}
+        print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))}, indent=1))
+    elif not args.scene:
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))

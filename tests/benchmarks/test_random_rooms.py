@@ -1,0 +1,45 @@
+"""Random hazard rooms (`benchmarks.random_rooms`): scenes drawn afresh from a seed, and
+the hazards benchmark's `--random` measures on them."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from benchmarks.bench_hazards import main
+from benchmarks.random_rooms import HAZARDS, random_room
+from scanmap_driver.sim import RASTER_DROP_OFF, truth_raster
+
+
+def test_a_seed_draws_one_room_and_other_seeds_other_rooms():
+    first, again, other = random_room(1), random_room(1), random_room(2)
+    assert first.to_dict() == again.to_dict()
+    assert first.to_dict()["floor_regions"] != other.to_dict()["floor_regions"]
+    names = sorted(region.name for region in first.floor_regions)
+    assert names == sorted(HAZARDS)
+
+
+def test_every_room_holds_drop_offs_and_ramps_and_a_path_clear_of_them():
+    for seed in range(1, 6):
+        room = random_room(seed)
+        raster = truth_raster(room)
+        assert (raster.classes == RASTER_DROP_OFF).sum() > 100
+        assert sum(any(region.gradient) for region in room.floor_regions) == 2
+        x, y = room.scan_poses[:, 0], room.scan_poses[:, 1]
+        for region in room.floor_regions:  # the robot (0.25 m) never stands on a hazard
+            for dx, dy in ((0.25, 0), (-0.25, 0), (0, 0.25), (0, -0.25)):
+                assert not region.contains(x + dx, y + dy).any(), (seed, region.name)
+        assert np.isfinite(room.scan_poses).all()
+
+
+def test_the_benchmark_measures_random_rooms_and_their_worst(capsys):
+    assert main(["--random", "2", "--quick"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"random_room(1)", "random_room(2)", "worst"}
+    worst = out["worst"]
+    assert worst["rooms"] == 2
+    assert worst["drop_free_any_scan"] == max(out[f"random_room({k})"]["drop_free_any_scan"]
+                                              for k in (1, 2))
+    assert worst["rooms_with_free_drop_off"] == 0
+    assert 0.0 < worst["ramp_f1_min"] <= worst["ramp_f1_mean"] <= 1.0
