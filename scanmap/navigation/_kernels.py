@@ -294,31 +294,35 @@ def touching_floor_reference(heights: np.ndarray, is_floor: np.ndarray, cells: n
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _off_floor(known: np.ndarray, hit: np.ndarray, y: int, x: int) -> bool:
-    """A hit that is not known floor at (y, x) (False outside the grid)."""
+def _off_floor(known: np.ndarray, hit: np.ndarray, y: int, x: int, unlit: bool) -> bool:
+    """Not known floor at (y, x): a hit, or with `unlit` any cell (False outside the
+    grid)."""
     ny, nx = known.shape
-    return 0 <= y < ny and 0 <= x < nx and hit[y, x] and not known[y, x]
+    return 0 <= y < ny and 0 <= x < nx and not known[y, x] and (unlit or hit[y, x])
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _inner_corner(known: np.ndarray, hit: np.ndarray, y: int, x: int, dy: int,
-                  dx: int) -> bool:
+def _inner_corner(known: np.ndarray, hit: np.ndarray, y: int, x: int, dy: int, dx: int,
+                  unlit: bool) -> bool:
     """Whether both row and column neighbours of (y, x) on one side of the diagonal
-    (dy, dx) are hits off the floor."""
-    return (_off_floor(known, hit, y + dy, x) and _off_floor(known, hit, y, x - dx)) or (
-        _off_floor(known, hit, y, x + dx) and _off_floor(known, hit, y - dy, x))
+    (dy, dx) are off the floor (`_off_floor`)."""
+    return (_off_floor(known, hit, y + dy, x, unlit) and _off_floor(known, hit, y, x - dx, unlit)
+            ) or (_off_floor(known, hit, y, x + dx, unlit)
+                  and _off_floor(known, hit, y - dy, x, unlit))
 
 
 @njit(cache=True, nogil=True)
 def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: int,
-                 step: float) -> np.ndarray:
+                 step: float, unlit_corners: bool = False) -> np.ndarray:
     """`known` and the cells without a hit lying between two known cells along a row, a
     column or a diagonal, at most `size` + 1 cells apart (metric: a diagonal step is
     sqrt(2) cells), heights within `step`, no other cell with a hit between them
     (`interpolated_reference` is the plain version). Not along a diagonal through the
     inner corner of hits off the floor (both of the cell's row and column neighbours on
-    one side of the diagonal): the floor's edge turns there (a hole's or a wall's corner),
-    and the diagonal between two rim cells runs outside the floor."""
+    one side of the diagonal), nor with `unlit_corners` of any cells not known floor,
+    hit or not: the floor's edge turns there (a hole's or a wall's corner; a hole's
+    inside often holds no hit at all), and the diagonal between two rim cells runs
+    outside the floor."""
     ny, nx = known.shape
     out = known.copy()
     reach = size + 1
@@ -328,7 +332,7 @@ def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: 
                 continue
             for d in range(4):
                 dy, dx = (0, 1, 1, 1)[d], (1, 0, 1, -1)[d]
-                if d >= 2 and _inner_corner(known, hit, y, x, dy, dx):
+                if d >= 2 and _inner_corner(known, hit, y, x, dy, dx, unlit_corners):
                     continue
                 length = math.sqrt(dy * dy + dx * dx)
                 ka, kb = 0, 0
@@ -358,7 +362,7 @@ def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: 
 
 
 def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarray,
-                           size: int, step: float) -> np.ndarray:
+                           size: int, step: float, unlit_corners: bool = False) -> np.ndarray:
     """`interpolated` in numpy (shifted copies of the grids), for tests."""
     ny, nx = known.shape
     informative = known | hit
@@ -367,14 +371,14 @@ def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarr
     pad = size + 1
     p_inf, p_known = np.pad(informative, pad), np.pad(known, pad)
     p_h = np.pad(heights, pad, constant_values=np.nan)
-    p_off = p_inf & ~p_known
+    p_off = np.pad(~known & (hit | unlit_corners), pad)  # off the floor, inside the grid
 
     def off_floor(oy: int, ox: int) -> np.ndarray:
         return p_off[pad + oy:pad + oy + ny, pad + ox:pad + ox + nx]
 
     for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
         corner = np.zeros((ny, nx), bool)
-        if dy and dx:  # the inner corner of hits off the floor on one side of the diagonal
+        if dy and dx:  # the inner corner of cells off the floor on one side of the diagonal
             corner = off_floor(dy, 0) & off_floor(0, -dx) | off_floor(0, dx) & off_floor(-dy, 0)
         ends = []
         for sign in (1, -1):

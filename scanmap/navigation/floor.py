@@ -149,13 +149,16 @@ class FloorConfig:
     slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over.
     drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
     without observed floor. max_hole: the largest patch without hits (m, each side of its
-    bounding box) inside consistent floor that is taken as floor. max_gap: the widest gap
-    (m) between two floor samples along a row, column or diagonal taken as floor, away
-    (max_gap) from any drop-off, any surface below the floor model, any level reaching
-    more than a step below it and any unobserved space wider than max_gap: this
-    scanner's lines lie r * 2 pi / 53 apart on the floor at range r (0.19 m at 1.6 m,
-    0.3 m at 2.5 m), so a hole of max_gap seen from 2.5 m or nearer is crossed by a line
-    and shows itself (below the floor, or a drop-off) before its cells are filled.
+    bounding box) inside consistent floor that is taken as floor. max_gap: the widest
+    opening (m) between two floor samples along a row, column or diagonal taken as floor
+    (the cells at its ends may be lit on part of their width only, so at most max_gap
+    less two cells without a hit are bridged), away from any drop-off, surface below the
+    floor model or level reaching more than a step below it (max_gap plus two cells, as
+    wide as a hole without unobserved space wider than max_gap in it) and from any such
+    wider unobserved space (max_gap): this scanner's lines lie r * 2 pi / 53 apart on the
+    floor at range r (0.19 m at 1.6 m, 0.3 m at 2.5 m), so a hole of max_gap seen from
+    2.5 m or nearer is crossed by a line and shows itself (below the floor, or a
+    drop-off) before its cells are filled.
     floor_probe: rays that passed this low (m) over a cell's floor should have lit it
     (the stripe runs along them); without a return there it is not FREE.
     min_logodds: the log-odds a level in the robot's band needs to make its cell an
@@ -391,7 +394,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     # passed to `interpolated` as a hit, it is skipped (the result is the same)
     apart = distance_transform(known_floor | informative)[0]
     seen_floor = nk.interpolated(known_floor, informative | (apart > 1.5), floor_height, 2,
-                                 robot.step_height)
+                                 robot.step_height, unlit_corners=True)
     drop |= _sunk(bare & ~holes & ~is_floor & ~stood & ~assumed, layers, is_floor, lowest,
                   drop, round(params.max_hole / res), params.plane_tolerance)
     gap = round(params.max_gap / res)
@@ -401,13 +404,19 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         with np.errstate(invalid="ignore"):  # the feet of surfaces standing on the floor
             foot = (layers.nlev > 0) & ~known_floor & (np.abs(
                 layers.levels[:, :, 0, gk.LO] - floor_height) <= robot.step_height)
-        lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap,
-                                robot.step_height) & ~seen_floor & ~foot
-        if lines.any():  # not within max_gap of a sign of a hole, nor of a wider gap
-            # through cells without a hit (not of the space behind a wall)
+        # The cells at a span's ends may be lit on their outer parts only, so the opening
+        # can be two cells wider than the unobserved span: bridge at most gap - 2 cells
+        lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
+                                robot.step_height, unlit_corners=True) & ~seen_floor & ~foot
+        if lines.any():  # not near a sign of a hole, nor within max_gap of a wider gap
+            # through cells without a hit (not of the space behind a wall). A hole too
+            # narrow to hold a `wide` cell (under gap + 2 cells) shows at most its far
+            # wall, up to its width from a span along its near rim: the signs reach that
+            # far, measured against each cell's own floor (the lowest around it may be a
+            # far wall's top taken for floor)
             lines &= distance_transform(drop | _below_model(
-                layers, is_floor, lowest, params.plane_tolerance) | _reaching_below(
-                layers, is_floor, lowest, robot.step_height))[0] > gap
+                layers, is_floor, floor_height, params.plane_tolerance) | _reaching_below(
+                layers, is_floor, floor_height, robot.step_height))[0] > gap + 2
             lines &= ~morphology.dilate(wide, gap, within=~(known_floor | informative))
         seen_floor |= lines
     unlit = (probed & bare) | steep | bridges

@@ -157,11 +157,11 @@ def test_without_pooling_the_coverage_rule_is_the_kernels(monkeypatch):
 
 
 def interpolated(known: np.ndarray, hit: np.ndarray | None = None,
-                 heights: np.ndarray | None = None) -> np.ndarray:
+                 heights: np.ndarray | None = None, unlit_corners: bool = False) -> np.ndarray:
     hit = known.copy() if hit is None else hit
     heights = np.zeros(known.shape, np.float32) if heights is None else heights
-    out = nk.interpolated(known, hit, heights, 2, STEP)
-    assert (out == nk.interpolated_reference(known, hit, heights, 2, STEP)).all()
+    out = nk.interpolated(known, hit, heights, 2, STEP, unlit_corners)
+    assert (out == nk.interpolated_reference(known, hit, heights, 2, STEP, unlit_corners)).all()
     return out
 
 
@@ -199,6 +199,26 @@ def test_no_diagonal_across_the_inner_corner_of_hits_off_the_floor(off_floor):
     assert interpolated(known, hit)[4, 4] == (len(off_floor) < 2)
     flipped = interpolated(known[:, ::-1], hit[:, ::-1])  # the other diagonal
     assert flipped[4, 4] == (len(off_floor) < 2)
+
+
+@pytest.mark.parametrize("floor_beside", [(), ((4, 3),), ((5, 4),), ((4, 3), (3, 4)),
+                                          ((4, 3), (4, 5)), ((5, 4), (3, 4))])
+@pytest.mark.parametrize("hits", [False, True])
+def test_with_unlit_corners_a_diagonal_needs_floor_on_both_sides(floor_beside, hits):
+    # A hole's corner often holds no hit at all: with `unlit_corners` (how the free space
+    # is filled), the cell between two rim cells on a diagonal is bridged only with floor
+    # beside it on both sides of the diagonal, hits or no hits elsewhere
+    known = np.zeros((9, 9), bool)
+    known[3, 3] = known[5, 5] = True  # the rim cells on the diagonal through (4, 4)
+    hit = known | hits  # the rest: hits off the floor, or unobserved
+    hit[4, 4] = False  # the cell itself holds no hit
+    for cell in floor_beside:
+        known[cell] = hit[cell] = True
+    sides = {(4, 3): 0, (5, 4): 0, (3, 4): 1, (4, 5): 1}  # side of the diagonal
+    both = {sides[cell] for cell in floor_beside} == {0, 1}
+    assert interpolated(known, hit, unlit_corners=True)[4, 4] == both
+    flipped = interpolated(known[:, ::-1], hit[:, ::-1], unlit_corners=True)
+    assert flipped[4, 4] == both  # the other diagonal
 
 
 @pytest.mark.parametrize("spoil", ["hit", "step"])
@@ -243,8 +263,9 @@ def test_interpolation_matches_its_numpy_reference(seed):
     heights = rng.normal(0.0, 0.04, (30, 40)).astype(np.float32)
     heights[rng.random((30, 40)) < 0.05] = np.nan
     for size in (1, 2, 4):
-        assert (nk.interpolated(known, hit, heights, size, STEP)
-                == nk.interpolated_reference(known, hit, heights, size, STEP)).all()
+        for unlit in (False, True):
+            assert (nk.interpolated(known, hit, heights, size, STEP, unlit)
+                    == nk.interpolated_reference(known, hit, heights, size, STEP, unlit)).all()
 
 
 @pytest.mark.parametrize("wall", [False, True])
