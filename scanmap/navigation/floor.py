@@ -474,25 +474,25 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
     return out
 
 
-def _below_model(layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray,
+def _below_model(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
                  tolerance: float) -> np.ndarray:
     """Cells with hits, not floor, whose lowest level lies wholly more than `tolerance`
-    below the lowest floor around them: a surface below the floor model (a hole's far
-    wall, seen only at its top, less than a step down)."""
+    below `floor` (the lowest floor around them, or their own): a surface below the floor
+    model (a hole's far wall, seen only at its top, less than a step down)."""
     with np.errstate(invalid="ignore"):
         return (layers.nlev > 0) & ~is_floor \
-            & (layers.levels[:, :, 0, gk.HI] < lowest - tolerance)
+            & (layers.levels[:, :, 0, gk.HI] < floor - tolerance)
 
 
-def _reaching_below(layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray,
+def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
                     depth: float) -> np.ndarray:
-    """Cells with hits, not floor, whose lowest level reaches more than `depth` below the
-    lowest floor around them: the far rim of a hole whose wall, seen only at its top, fell
-    into the cell of the floor beyond it (one level from the wall's hits up to the floor's:
-    not wholly below the floor, so not `_below_model`, yet a sign of a hole)."""
+    """Cells with hits, not floor, whose lowest level reaches more than `depth` below
+    `floor` (as for `_below_model`): the far rim of a hole whose wall, seen only at its
+    top, fell into the cell of the floor beyond it (one level from the wall's hits up to
+    the floor's: not wholly below the floor, so not `_below_model`, yet a sign of a hole)."""
     with np.errstate(invalid="ignore"):
         return (layers.nlev > 0) & ~is_floor \
-            & (layers.levels[:, :, 0, gk.LO] < lowest - depth)
+            & (layers.levels[:, :, 0, gk.LO] < floor - depth)
 
 
 def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
