@@ -250,12 +250,17 @@ def placed_run(count: int, scans: int | None = None) -> dict[str, float]:
     boundaries)."""
     runs = [hazard_run(scans, scene=builtin_scene("hazards").moved(*placed))
             for placed in placements(count)]
-    return {"placements": count,
-            "drop_free_any_scan": max(r["drop_free_any_scan"] for r in runs),
+    return {"placements": count, **worst_over(runs)}
+
+
+def worst_over(runs: list[dict[str, float]]) -> dict[str, float]:
+    """Over `hazard_run` results: the most free drop-off cells after any scan, the worst
+    edge, the least share of it within one cell, the least and the mean ramp F1."""
+    return {"drop_free_any_scan": max(r["drop_free_any_scan"] for r in runs),
             "edge_error_cells": max(r["edge_error_cells"] for r in runs),
             "edge_within_one": min(r["edge_within_one"] for r in runs),
-            "ramp_f1_min": min(r["ramp_f1"] for r in runs),
-            "ramp_f1_mean": float(np.mean([r["ramp_f1"] for r in runs]))}
+            "ramp_f1_min": float(np.nanmin([r["ramp_f1"] for r in runs])),
+            "ramp_f1_mean": float(np.nanmean([r["ramp_f1"] for r in runs]))}
 
 
 def random_run(count: int, scans: int | None = None) -> dict[str, float]:
@@ -266,15 +271,11 @@ def random_run(count: int, scans: int | None = None) -> dict[str, float]:
 
 
 def rooms_summary(runs: list[dict[str, float]]) -> dict[str, float]:
-    """The worst and the mean of `hazard_run` results over rooms (`random_run`)."""
+    """`worst_over` rooms (`random_run`), the rooms with a free drop-off cell after some
+    scan and the most after the last."""
     return {"rooms": len(runs),
             "rooms_with_free_drop_off": sum(r["drop_free_any_scan"] > 0 for r in runs),
-            "drop_free_any_scan": max(r["drop_free_any_scan"] for r in runs),
-            "drop_free": max(r["drop_free"] for r in runs),
-            "edge_error_cells": max(r["edge_error_cells"] for r in runs),
-            "edge_within_one": min(r["edge_within_one"] for r in runs),
-            "ramp_f1_min": float(np.nanmin([r["ramp_f1"] for r in runs])),
-            "ramp_f1_mean": float(np.nanmean([r["ramp_f1"] for r in runs]))}
+            "drop_free": max(r["drop_free"] for r in runs), **worst_over(runs)}
 
 
 def person_cells(scene: Scene, truth_shape_of: Segmentation, scans: int) -> np.ndarray:

@@ -131,6 +131,14 @@ def test_a_step_down_is_not_walked_down_through_the_cells_of_its_face(placed):
         assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
 
 
+def assert_no_drop_off_free(scene: Scene) -> None:
+    """No drop-off cell more than a cell inside is FREE after any scan of `scene`."""
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
+    for step in mapped(scene):
+        truth = truth_classes(step.seg, raster)
+        assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
+
+
 @pytest.mark.parametrize("placed", [(0.007, 0.047, 0.0), (0.015, 0.023, 0.755)])
 def test_a_hole_driven_past_is_never_free(placed):
     # A hole as wide as max_gap, 1.2 m beside the path. The top of its far wall, where the
@@ -141,10 +149,7 @@ def test_a_hole_driven_past_is_never_free(placed):
     size = FloorConfig().max_gap
     scene = room({"center": [3.0, 1.2], "size": [size, size], "height": -0.5, "name": "hole"},
                  [[0.6 * k, 0.0, 0.0] for k in range(11)]).moved(*placed)
-    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
-    for step in mapped(scene):
-        truth = truth_classes(step.seg, raster)
-        assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
+    assert_no_drop_off_free(scene)
 
 
 @pytest.mark.parametrize(("size", "centre", "yaw"), [
@@ -158,10 +163,7 @@ def test_a_hole_a_little_wider_than_max_gap_is_never_free(size, centre, yaw):
     # and 2 cells more than a cell inside were FREE after some scan
     scene = room({"center": list(centre), "size": list(size), "yaw": yaw, "height": -0.4,
                   "name": "hole"}, [[0.3 * k, 0.0, 0.0] for k in range(21)])
-    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
-    for step in mapped(scene):
-        truth = truth_classes(step.seg, raster)
-        assert drop_measures(step.seg, truth, raster)["drop_free"] == 0, f"scan {step.index}"
+    assert_no_drop_off_free(scene)
 
 
 def test_the_hazard_measures_hold_on_a_scene_without_drop_offs_or_ramps():
