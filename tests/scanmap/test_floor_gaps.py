@@ -18,35 +18,51 @@ from scanmap.navigation.floor import FloorConfig, RobotShape, segment
 STEP = 0.05
 
 
+TOLERANCE = FloorConfig().plane_tolerance
+
+
 def gap_scene(n: int = 20, gap: tuple[int, int, int, int] = (8, 10, 8, 10)):
-    """Floor hits everywhere (height 0) but a bare patch rows gap[0]:gap[1], cols gap[2]:gap[3]
-    and the ring of one cell around it (no hit there either)."""
+    """Floor hits everywhere (height 0, levels from 0 up) but a bare patch rows
+    gap[0]:gap[1], cols gap[2]:gap[3] and the ring of one cell around it (no hit there
+    either): bare, nlev, bottoms of the levels, is_floor, heights, drop."""
     y0, y1, x0, x1 = gap
     nlev = np.ones((n, n), np.uint8)
     nlev[y0 - 1:y1 + 1, x0 - 1:x1 + 1] = 0
     is_floor = nlev > 0
     bare = np.zeros((n, n), bool)
     bare[y0:y1, x0:x1] = True
-    return bare, nlev, is_floor, np.zeros((n, n), np.float32), np.zeros((n, n), bool)
+    return (bare, nlev, np.zeros((n, n), np.float32), is_floor, np.zeros((n, n), np.float32),
+            np.zeros((n, n), bool))
 
 
-def test_a_small_gap_in_level_floor_is_floor():
-    bare, nlev, is_floor, heights, drop = gap_scene()
-    assert (floor_module._lit_gaps(bare, nlev, is_floor, heights, drop, 6, STEP) == bare).all()
+def lit_gaps(bare, nlev, bottoms, is_floor, heights, drop):
+    return floor_module._lit_gaps(bare, nlev, bottoms, is_floor, heights, drop, 6, STEP,
+                                  TOLERANCE)
 
 
-@pytest.mark.parametrize("spoil", ["step", "obstacle_hit", "drop", "too_large", "edge"])
+@pytest.mark.parametrize("dip", [0.0, 0.5, 0.9])
+def test_a_small_gap_in_level_floor_is_floor(dip):
+    # a floor level reaching down less than the floor model's tolerance is floor's noise
+    bare, nlev, bottoms, is_floor, heights, drop = gap_scene()
+    bottoms[11, 8] = -dip * TOLERANCE
+    assert (lit_gaps(bare, nlev, bottoms, is_floor, heights, drop) == bare).all()
+
+
+@pytest.mark.parametrize("spoil", ["step", "obstacle_hit", "drop", "too_large", "edge", "dip"])
 def test_a_gap_is_not_floor_when_its_surroundings_are_not_consistent_floor(spoil):
     gap = (8, 10, 8, 10) if spoil not in ("too_large", "edge") else \
         (4, 12, 8, 10) if spoil == "too_large" else (1, 3, 8, 10)
-    bare, nlev, is_floor, heights, drop = gap_scene(gap=gap)
+    bare, nlev, bottoms, is_floor, heights, drop = gap_scene(gap=gap)
     if spoil == "step":
         heights[gap[1] + 1, gap[2]] = 2 * STEP  # a floor hit a step higher, two cells away
     elif spoil == "obstacle_hit":
         is_floor[gap[1] + 1, gap[2]] = False  # a hit there that is not floor
     elif spoil == "drop":
         drop[gap[0] - 1, gap[2]] = True
-    assert not floor_module._lit_gaps(bare, nlev, is_floor, heights, drop, 6, STEP).any()
+    elif spoil == "dip":  # a floor cell whose level reaches down a hole's far wall
+        bottoms[gap[1] + 1, gap[2]] = -1.2 * TOLERANCE
+        heights[gap[1] + 1, gap[2]] = -0.6 * TOLERANCE
+    assert not lit_gaps(bare, nlev, bottoms, is_floor, heights, drop).any()
 
 
 def test_pooled_seen_spreads_each_bin_to_the_neighbours_only():
@@ -84,22 +100,29 @@ def test_pooled_bits_and_lowest_seen_match_plain_numpy(seed, ny, nx, reach):
     assert np.array_equal(nk.lowest_seen(seen, -0.35, 0.025), expected)
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_floor_gaps_match_their_plain_reference(seed):
-    """Random bare patches among floor of random heights (some NaN), stray hits and
-    drop-offs: the kernel's verdict per patch is the plain loop's."""
+    """Random hit-free rectangles in floor of random heights (some NaN) and dips, stray
+    hits and drop-offs: the kernel's verdict per patch is the plain loop's (measured over
+    300 seeds: 191 small patches, 68 within a step, 9 of those without a dip)."""
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(6, 30))
-    nlev = (rng.random((n, n)) < 0.7).astype(np.uint8)
-    is_floor = (nlev > 0) & (rng.random((n, n)) < 0.95)
-    heights = rng.normal(0.0, 0.02, (n, n)).astype(np.float32)
+    n = int(rng.integers(8, 30))
+    nlev = np.ones((n, n), np.uint8)
+    for _ in range(int(rng.integers(1, 5))):
+        y, x = rng.integers(0, n, 2)
+        h, w = rng.integers(3, 8, 2)
+        nlev[y:y + h, x:x + w] = 0
+    nlev[rng.random((n, n)) < 0.02] = 1
+    is_floor = (nlev > 0) & (rng.random((n, n)) < 0.97)
+    heights = rng.normal(0.0, 0.01, (n, n)).astype(np.float32)
     heights[rng.random((n, n)) < 0.01] = np.nan
+    bottoms = (heights - rng.exponential(0.01, (n, n))).astype(np.float32)
     bare = ~ndimage.maximum_filter(nlev > 0, 3)
-    drop = rng.random((n, n)) < 0.02
+    drop = rng.random((n, n)) < 0.01
     labels, boxes, ok = floor_module._small_patches(bare, 4, margin=2)
     near_drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool))
-    args = (labels, boxes, ok, near_drop, nlev, is_floor, heights, STEP)
+    args = (labels, boxes, ok, near_drop, nlev, is_floor, heights, bottoms, STEP, TOLERANCE)
     assert np.array_equal(nk.floor_gaps(*args), nk.floor_gaps_reference(*args))
 
 

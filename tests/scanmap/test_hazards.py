@@ -166,6 +166,17 @@ def test_a_hole_a_little_wider_than_max_gap_is_never_free(size, centre, yaw):
     assert_no_drop_off_free(scene)
 
 
+def test_a_hole_as_wide_as_max_hole_between_two_laser_lines_is_never_free():
+    # A random room's hole (seed 20's, 0.32 m x 0.30 m, 2 m from the first pose): at the
+    # second scan it lies between two laser lines 24 cm apart that only graze its corners,
+    # landing 2-4 cm down its far wall in the rim's cells, and nothing in it was hit; 13
+    # cells more than a cell inside were FREE, filled as a gap between samples
+    scene = room({"center": [1.979, 1.428], "size": [0.322, 0.3], "yaw": -0.318,
+                  "height": -0.523, "name": "hole"},
+                 [[0.0, 0.1952, 0.1954], [0.3, 0.2553, 0.1724], [0.6, 0.302, 0.1096]])
+    assert_no_drop_off_free(scene)
+
+
 def test_the_hazard_measures_hold_on_a_scene_without_drop_offs_or_ramps():
     measures = hazard_run(2, scene=builtin_scene("corridor"))
     assert measures["drop_cells"] == measures["drop_free_any_scan"] == 0
