@@ -212,17 +212,13 @@ def ring_heights_reference(labels: np.ndarray, count: int, is_floor: np.ndarray,
 @njit(cache=True, nogil=True)
 def floor_gaps(labels: np.ndarray, boxes: np.ndarray, small: np.ndarray,
                near_drop: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
-               heights: np.ndarray, lowest: np.ndarray, step: float,
-               tolerance: float) -> np.ndarray:
+               heights: np.ndarray, dips: np.ndarray, step: float) -> np.ndarray:
     """Per label, whether its patch is a gap between floor samples: `small` (its box, x y
     w h, lies 2 cells or more inside the grid), no cell of it in `near_drop`, and the cells
-    within its box grown by 2 hold floor, no hit off the floor, floor heights differing by
-    at most `step` (NaN among them: not a gap) and no floor cell whose `lowest` (the
-    bottom of its lowest level) lies more than `tolerance` below their median (a dip: the
-    top of a hole's far wall where a laser line grazed the hole). `floor_gaps_reference`
-    is the plain version."""
+    within its box grown by 2 hold floor, no hit off the floor, no cell of `dips` and floor
+    heights differing by at most `step` (NaN among them: not a gap).
+    `floor_gaps_reference` is the plain version."""
     out = np.zeros(small.shape[0], np.bool_)
-    lying = np.empty(0, np.float32)
     for label in range(1, small.shape[0]):
         if not small[label]:
             continue
@@ -233,30 +229,25 @@ def floor_gaps(labels: np.ndarray, boxes: np.ndarray, small: np.ndarray,
                 by_drop |= labels[y, x] == label and near_drop[y, x]
         if by_drop:
             continue
-        if lying.size < (w + 4) * (h + 4):
-            lying = np.empty((w + 4) * (h + 4), np.float32)
-        count, stray, odd = 0, False, False
-        low, high, bottom = np.float32(np.inf), np.float32(-np.inf), np.float32(np.inf)
+        floor, stray, odd = False, False, False
+        low, high = np.float32(np.inf), np.float32(-np.inf)
         for y in range(y0 - 2, y0 + h + 2):
             for x in range(x0 - 2, x0 + w + 2):
                 if is_floor[y, x]:
+                    floor = True
                     z = heights[y, x]
                     odd |= np.isnan(z)
                     low, high = min(low, z), max(high, z)
-                    bottom = min(bottom, lowest[y, x])
-                    lying[count] = z
-                    count += 1
                 elif nlev[y, x] > 0:
                     stray = True
-        if count and not stray and not odd and high - low <= step:
-            out[label] = bottom >= np.median(lying[:count]) - tolerance
+                odd |= dips[y, x]
+        out[label] = floor and not stray and not odd and high - low <= step
     return out
 
 
 def floor_gaps_reference(labels: np.ndarray, boxes: np.ndarray, small: np.ndarray,
                          near_drop: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
-                         heights: np.ndarray, lowest: np.ndarray, step: float,
-                         tolerance: float) -> np.ndarray:
+                         heights: np.ndarray, dips: np.ndarray, step: float) -> np.ndarray:
     """`floor_gaps` in numpy, for tests."""
     out = np.zeros(small.shape[0], bool)
     for label in np.flatnonzero(small):
@@ -267,8 +258,7 @@ def floor_gaps_reference(labels: np.ndarray, boxes: np.ndarray, small: np.ndarra
         floor = is_floor[around]
         lying = heights[around][floor]
         out[label] = floor.any() and not ((nlev[around] > 0) & ~floor).any() \
-            and lying.max() - lying.min() <= step \
-            and lowest[around][floor].min() >= np.median(lying) - tolerance
+            and not dips[around].any() and lying.max() - lying.min() <= step
     return out
 
 

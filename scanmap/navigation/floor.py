@@ -37,8 +37,8 @@ scanned from (it stood there; FREE unless something occupies its band), the assu
 `fallback_floor` of a 2-D laser, a patch without any hit no larger than `max_hole` (0.3
 m, each side) enclosed by floor whose heights differ by at most a step, or whose hits
 within two cells are all such floor, none reaching more than `plane_tolerance` below the
-others (a gap between the laser's samples; a line grazing a hole's corner lands a few cm
-down its far wall), away from any drop-off, and a cell without any hit between two
+floor beside it (a gap between the laser's samples; a line grazing a hole's corner lands
+a few cm down its far wall), away from any drop-off, and a cell without any hit between two
 such cells at most three cells (15 cm) apart along a row, a column or a diagonal, with
 heights within a step (the gaps between samples too narrow to hold a cell without a hit
 next to it); last, a patch without any
@@ -157,7 +157,8 @@ class FloorConfig:
     opening (m) between two floor samples along a row, column or diagonal taken as floor
     (the cells at its ends may be lit on part of their width only, so at most max_gap
     less two cells without a hit are bridged), away from any drop-off, surface below the
-    floor model or level reaching more than a step below it (max_gap plus two cells, as
+    floor model, level reaching more than a step below it or level reaching more than
+    plane_tolerance below the floor beside it (`_dips`) (max_gap plus two cells, as
     wide as a hole without unobserved space wider than max_gap in it) and from any such
     wider unobserved space (max_gap): this scanner's lines lie r * 2 pi / 53 apart on the
     floor at range r (0.19 m at 1.6 m, 0.3 m at 2.5 m), so a hole of max_gap seen from
@@ -388,9 +389,10 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         <= floor_height + params.floor_probe
     bare = ~morphology.max_filter(layers.nlev > 0, 3)
     bottom = layers.levels[:, :, 0, gk.LO]  # of each cell's lowest level
-    holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, bottom,
-                       is_floor, floor_height, drop,
-                       round(params.max_hole / res), robot.step_height, params.plane_tolerance)
+    dips = _dips(layers.nlev, bottom, is_floor, params.plane_tolerance)
+    holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
+                       floor_height, drop, dips, round(params.max_hole / res),
+                       robot.step_height)
     # No return is not free: the floor seen (a hit there), a gap, stood on, assumed, or
     # between two such cells: at most three cells apart anywhere, at most max_gap apart
     # (the spacing of the laser's lines) away from any sign of a hole
@@ -420,7 +422,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
             # wall, up to its width from a span along its near rim: the signs reach that
             # far, measured against each cell's own floor (the lowest around it may be a
             # far wall's top taken for floor)
-            lines &= distance_transform(drop | _below_model(
+            lines &= distance_transform(drop | dips | _below_model(
                 layers, is_floor, floor_height, params.plane_tolerance) | _reaching_below(
                 layers, is_floor, floor_height, robot.step_height))[0] > gap + 2
             lines &= ~morphology.dilate(wide, gap, within=~(known_floor | informative))
@@ -501,20 +503,30 @@ def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
             & (layers.levels[:, :, 0, gk.LO] < floor - depth)
 
 
-def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, lowest: np.ndarray,
-              is_floor: np.ndarray, floor_height: np.ndarray, drop: np.ndarray, size: int,
-              step: float, tolerance: float) -> np.ndarray:
+def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
+              floor_height: np.ndarray, drop: np.ndarray, dips: np.ndarray, size: int,
+              step: float) -> np.ndarray:
     """Patches of `bare` cells (no hit around them) at most `size` cells on each side, not
     at the window's edge nor next to a drop-off, whose hits within two cells are all floor
-    with heights differing by at most `step`, none reaching down (`lowest`, the bottom of
-    a cell's lowest level) more than `tolerance` below their median: gaps between the
-    laser's samples. A line grazing a hole's corner lands a few cm down its far wall, in
-    the cell of the rim's floor: a hole as wide as the gaps between lines, lying between
-    two, shows itself only so."""
+    with heights differing by at most `step`, none of `dips` (`_dips`): gaps between the
+    laser's samples."""
     labels, boxes, ok = _small_patches(bare, size, margin=2)
     gaps = nk.floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
-                         floor_height, lowest, step, tolerance)
+                         floor_height, dips, step)
     return gaps[labels]
+
+
+def _dips(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,
+          tolerance: float) -> np.ndarray:
+    """Cells with hits whose lowest level's `bottom` lies more than `tolerance` below the
+    highest bottom of the floor cells in their 3 x 3 square: a line grazing a hole lands
+    a few cm down its far wall, in the cell of the rim's floor, so a hole as wide as the
+    gaps between lines, lying between two, may show itself only so. Bottoms against
+    bottoms (each a level's lowest hit), not floor heights: noise lowers them alike."""
+    with np.errstate(invalid="ignore"):
+        floor_bottom = np.where(is_floor & (nlev > 0), bottom, -np.inf)
+        highest = -morphology.min_filter(-floor_bottom, 3)
+        return (nlev > 0) & (bottom < highest - tolerance)
 
 
 def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
