@@ -2,10 +2,11 @@
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
+        [--mixed N]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
-takes them); with `--random N`, on N random hazard rooms (`random_rooms`): a method must
-hold on hazard scenes it was not built on.
+takes them); with `--random N` or `--mixed N`, on N random hazard rooms or N mixed rooms
+(`random_rooms`): a method must hold on hazard scenes it was not built on.
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -46,13 +47,14 @@ slope). Rows:
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from benchmarks.random_rooms import random_room
+from benchmarks.random_rooms import mixed_room, random_room
 from scanmap.evaluation.ground_truth import drop_off_errors
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
@@ -255,12 +257,14 @@ def placed_run(count: int, scans: int | None = None) -> dict[str, float]:
 
 def worst_over(runs: list[dict[str, float]]) -> dict[str, float]:
     """Over `hazard_run` results: the most free drop-off cells after any scan, the worst
-    edge, the least share of it within one cell, the least and the mean ramp F1."""
+    edge, the least share of it within one cell, the least and the mean ramp F1 (over
+    the runs that saw a ramp; NaN if none did)."""
+    f1 = [r["ramp_f1"] for r in runs if not math.isnan(r["ramp_f1"])]
     return {"drop_free_any_scan": max(r["drop_free_any_scan"] for r in runs),
             "edge_error_cells": max(r["edge_error_cells"] for r in runs),
             "edge_within_one": min(r["edge_within_one"] for r in runs),
-            "ramp_f1_min": float(np.nanmin([r["ramp_f1"] for r in runs])),
-            "ramp_f1_mean": float(np.nanmean([r["ramp_f1"] for r in runs]))}
+            "ramp_f1_min": min(f1, default=math.nan),
+            "ramp_f1_mean": float(np.mean(f1)) if f1 else math.nan}
 
 
 def random_run(count: int, scans: int | None = None) -> dict[str, float]:
@@ -417,16 +421,20 @@ def main(argv: list[str] | None = None) -> int:
                         help="measure this scene file (or built-in scene) instead: the "
                         "drop-off and ramp measures, and with people the ghost ones; "
                         "repeatable")
-    parser.add_argument("--random", type=int, metavar="N",
-                        help="instead: the drop-off and ramp measures on N random hazard "
-                        "rooms (benchmarks.random_rooms), each and the worst")
+    for family in ("random", "mixed"):
+        parser.add_argument(f"--{family}", type=int, metavar="N",
+                            help=f"instead: the drop-off and ramp measures on N {family} "
+                            "rooms (benchmarks.random_rooms), each and the worst")
     args = parser.parse_args(argv)
     scans = 8 if args.quick else None
-    if args.random:
-        rooms = {f"random_room({seed})": hazard_run(scans, scene=random_room(seed))
-                 for seed in range(1, args.random + 1)}
-        print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))}, indent=1))
-    elif not args.scene:
+    for family, draw in (("random", random_room), ("mixed", mixed_room)):
+        count = getattr(args, family) or 0
+        rooms = {f"{family}_room({seed})": hazard_run(scans, scene=draw(seed))
+                 for seed in range(1, count + 1)}
+        if rooms:
+            print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))},
+                             indent=1))
+    if not (args.scene or args.random or args.mixed):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))

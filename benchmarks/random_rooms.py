@@ -1,15 +1,26 @@
-"""Random hazard rooms: scenes the hazard rules were not built on (`random_room(seed)`).
+"""Random hazard rooms: scenes the hazard rules were not built on (two families below).
 
 The built-in `hazards` and `workshop` scenes are where the rules were shaped; a rule that
-holds only there is tuned to them. Each room here is drawn afresh from its seed: a walled
-10 m x 5 m room with eight hazards on alternate sides of a weaving path (26 stop-and-scan
-poses 0.3 m apart, the heading following the path within 3 deg): two holes 0.3-0.6 m wide
-and 0.2-0.6 m deep, a step down of 6-20 cm, a pit 0.6-1.0 m across and 0.1-0.3 m deep, a
-platform 8-30 cm high, a low step of 1-4 cm (traversable), a ramp of 4-11 deg
-(traversable) and one of 20-30 deg (not), each turned by up to 46 deg (the ramps rise
-along x), their order along the room shuffled. A hole's other side is 0.8-1.3 times the
-first but never under `FloorConfig.max_hole` (0.3 m): a smaller hole, while nothing in it
-or at its rim has been seen, is a patch the rules may take for a gap between samples.
+holds only there is tuned to them. Each room is drawn afresh from its seed.
+
+`random_room(seed)`: a walled 10 m x 5 m room with eight hazards on alternate sides of a
+weaving path (26 stop-and-scan poses 0.3 m apart, the heading following the path within 3
+deg): two holes 0.3-0.6 m wide and 0.2-0.6 m deep, a step down of 6-20 cm, a pit 0.6-1.0
+m across and 0.1-0.3 m deep, a platform 8-30 cm high, a low step of 1-4 cm (traversable),
+a ramp of 4-11 deg (traversable) and one of 20-30 deg (not), each turned by up to 46 deg
+(the ramps rise along x), their order along the room shuffled. A hole's other side is
+0.8-1.3 times the first but never under `FloorConfig.max_hole` (0.3 m): a smaller hole,
+while nothing in it or at its rim has been seen, is a patch the rules may take for a gap
+between samples.
+
+`mixed_room(seed)` holds what those rooms lack, in a room 13.6 m long and 4-6 m wide:
+three holes 0.3-0.7 m wide and 0.1-0.8 m deep, a hole 0.3-0.6 m wide whose inside returns
+nothing (black-lined), black carpet 0.3-1.0 m on a side, a stairwell 2 m deep, a step down,
+a pit, a ramp of 3-12 deg, a glass panel and a box, at alternate sides of a path whose
+poses lie 0.3-0.6 m apart (the heading within 12 deg of the path), in ambient light
+0.3-0.9. A black-lined hole returns nothing, as black carpet does: it is told apart only
+by its size, so one a little wider than `max_hole` may be taken for carpet (the lit gaps
+around it widen the patch the rules measure).
 """
 
 from __future__ import annotations
@@ -51,10 +62,91 @@ def _region(kind: str, x: float, y: float, rng: np.random.Generator) -> dict:
     return region
 
 
+MIXED = ("hole", "hole", "hole", "black-lined hole", "black carpet", "stairwell", "step down",
+         "pit", "ramp", "glass", "box")
+HAZARD_STEP = 1.1  # m along x between the mixed rooms' hazards
+
+
+def _mixed_region(kind: str, centre: list[float], rng: np.random.Generator) -> dict:
+    """One of the mixed room's floor regions (a scene file's entry) at `centre`."""
+    region = {"center": centre, "name": kind, "color": [130, 130, 130],
+              "yaw": round(float(rng.uniform(-0.8, 0.8)), 3) if rng.random() < 0.5 else 0.0}
+    side = round(float(rng.uniform(0.3, 0.7)), 3)
+    if kind == "hole":
+        region |= {"size": [side, round(max(side * rng.uniform(0.7, 1.4), 0.3), 3)],
+                   "height": round(-rng.uniform(0.1, 0.8), 3)}
+    elif kind == "black-lined hole":
+        side = round(float(rng.uniform(0.3, 0.6)), 3)
+        region |= {"size": [side, side], "height": round(-rng.uniform(0.1, 0.5), 3),
+                   "reflectance": 0.0, "color": [20, 20, 20]}
+    elif kind == "black carpet":
+        region |= {"size": [round(float(rng.uniform(0.3, 1.0)), 3) for _ in range(2)],
+                   "height": 0.0, "reflectance": 0.0, "color": [20, 20, 20]}
+    elif kind == "stairwell":
+        region |= {"size": [round(float(rng.uniform(0.6, 0.9)), 3) for _ in range(2)],
+                   "height": -2.0}
+    elif kind == "step down":
+        region |= {"size": [0.9, 0.9], "height": round(-rng.uniform(0.06, 0.25), 3)}
+    elif kind == "pit":
+        region |= {"size": [round(float(rng.uniform(0.5, 1.0)), 3)] * 2,
+                   "height": round(-rng.uniform(0.06, 0.3), 3)}
+    else:  # a ramp rising along x
+        gradient = math.tan(math.radians(rng.uniform(3.0, 12.0)))
+        region |= {"size": [0.9, 0.8], "gradient": [round(gradient, 4), 0.0], "yaw": 0.0,
+                   "height": round(0.45 * gradient + 2e-4, 4)}
+    return region
+
+
+def mixed_room(seed: int) -> Scene:
+    """The mixed room of the module docstring drawn from `seed`."""
+    rng = np.random.default_rng(seed)
+    kinds = list(MIXED)
+    rng.shuffle(kinds)
+    length, width = HAZARD_STEP * len(kinds) + 1.5, rng.uniform(4.0, 6.0)
+    regions, objects = [], []
+    for k, kind in enumerate(kinds):
+        side = 1 if k % 2 else -1
+        centre = [round(0.6 + HAZARD_STEP * k + rng.uniform(-0.15, 0.15), 3),
+                  round(side * rng.uniform(1.2, 0.5 * width - 0.8), 3)]
+        if kind in ("glass", "box"):
+            glass = kind == "glass"
+            objects.append({"type": "box", "center": centre + [0.5 if glass else 0.2],
+                            "size": [0.6, 0.02, 1.0] if glass else [0.5, 0.4, 0.4],
+                            "yaw": round(float(rng.uniform(-0.8, 0.8)), 3), "name": kind,
+                            "color": [220, 230, 230] if glass else [90, 110, 160]}
+                           | ({"surface": "glass"} if glass else {}))
+        else:
+            regions.append(_mixed_region(kind, centre, rng))
+    step, amplitude = rng.uniform(0.3, 0.6), rng.uniform(0.0, 0.2)
+    phase = rng.uniform(0.0, 2 * math.pi)
+    poses = [[round(x, 3), round(amplitude * math.sin(x / 1.3 + phase), 4),
+              round(float(rng.uniform(-0.2, 0.2)), 4)]
+             for x in step * np.arange(int((length - 2.5) / step) + 1)]
+    return _room(f"mixed room {seed}", f"mixed_room({seed})", length, width,
+                 float(rng.uniform(0.3, 0.9)), objects, regions, poses)
+
+
+def _room(name: str, source: str, length: float, width: float, ambient: float,
+          objects: list[dict], regions: list[dict], poses: list[list[float]]) -> Scene:
+    """A walled room from x = -1.05 to `length` - 1.05, `width` wide about y = 0, holding
+    `objects` and `regions`, scanned from `poses`."""
+    wall = {"type": "box", "color": [200, 196, 190]}
+    east, half = length - 1.05, 0.5 * width
+    walls = [wall | {"center": [round(0.5 * (east - 1.05), 3), round(y, 3), 0.65],
+                     "size": [round(east + 1.15, 3), 0.1, 1.7]} for y in (-half, half)] \
+        + [wall | {"center": [x, 0.0, 0.65], "size": [0.1, round(width - 0.1, 3), 1.7]}
+           for x in (-1.05, round(east, 3))]
+    return Scene.from_dict({
+        "format": "scanmap.scene/1", "name": name,
+        "description": f"{source}: {__doc__.splitlines()[0]}",
+        "floor": {"color": [150, 140, 125]}, "ambient": ambient, "texture": 0.25,
+        "objects": walls + objects, "floor_regions": regions, "scan_poses": poses},
+        source=source)
+
+
 def random_room(seed: int) -> Scene:
     """The room of the module docstring drawn from `seed` (the same seed, the same room)."""
     rng = np.random.default_rng(seed)
-    wall = {"type": "box", "color": [200, 196, 190]}
     kinds = list(HAZARDS)
     rng.shuffle(kinds)
     regions = [_region(kind, 1.0 + k + rng.uniform(-0.2, 0.2),
@@ -67,11 +159,5 @@ def random_room(seed: int) -> Scene:
         slope = amplitude / 1.3 * math.cos(x / 1.3 + phase)
         poses.append([round(x, 3), round(amplitude * math.sin(x / 1.3 + phase), 4),
                       round(math.atan(slope) + rng.uniform(-0.05, 0.05), 4)])
-    return Scene.from_dict({
-        "format": "scanmap.scene/1", "name": f"random room {seed}",
-        "description": f"random_room({seed}): {__doc__.splitlines()[0]}",
-        "floor": {"color": [150, 140, 125]}, "ambient": 0.8, "texture": 0.25,
-        "objects": [wall | {"center": [4.0, y, 0.65], "size": [10.2, 0.1, 1.7]}
-                    for y in (-2.55, 2.55)]
-        + [wall | {"center": [x, 0.0, 0.65], "size": [0.1, 5.0, 1.7]} for x in (-1.05, 9.05)],
-        "floor_regions": regions, "scan_poses": poses}, source=f"random_room({seed})")
+    return _room(f"random room {seed}", f"random_room({seed})", 10.1, 5.1, 0.8, [], regions,
+                 poses)

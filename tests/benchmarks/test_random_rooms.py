@@ -8,8 +8,17 @@ import json
 import numpy as np
 
 from benchmarks.bench_hazards import main
-from benchmarks.random_rooms import HAZARDS, random_room
-from scanmap_driver.sim import RASTER_DROP_OFF, truth_raster
+from benchmarks.random_rooms import HAZARDS, MIXED, mixed_room, random_room
+from scanmap_driver.sim import RASTER_DROP_OFF, Scene, truth_raster
+
+
+def assert_path_clear(room: Scene, seed: int) -> None:
+    """The robot (0.25 m round its poses) never stands on a floor region."""
+    x, y = room.scan_poses[:, 0], room.scan_poses[:, 1]
+    for region in room.floor_regions:
+        for dx, dy in ((0.25, 0), (-0.25, 0), (0, 0.25), (0, -0.25)):
+            assert not region.contains(x + dx, y + dy).any(), (seed, region.name)
+    assert np.isfinite(room.scan_poses).all()
 
 
 def test_a_seed_draws_one_room_and_other_seeds_other_rooms():
@@ -26,11 +35,23 @@ def test_every_room_holds_drop_offs_and_ramps_and_a_path_clear_of_them():
         raster = truth_raster(room)
         assert (raster.classes == RASTER_DROP_OFF).sum() > 100
         assert sum(any(region.gradient) for region in room.floor_regions) == 2
-        x, y = room.scan_poses[:, 0], room.scan_poses[:, 1]
-        for region in room.floor_regions:  # the robot (0.25 m) never stands on a hazard
-            for dx, dy in ((0.25, 0), (-0.25, 0), (0, 0.25), (0, -0.25)):
-                assert not region.contains(x + dx, y + dy).any(), (seed, region.name)
-        assert np.isfinite(room.scan_poses).all()
+        assert_path_clear(room, seed)
+
+
+def test_a_mixed_room_holds_its_hazards_inside_its_walls_beside_a_clear_path():
+    assert mixed_room(3).to_dict() == mixed_room(3).to_dict()
+    assert mixed_room(3).to_dict()["floor_regions"] != mixed_room(4).to_dict()["floor_regions"]
+    for seed in range(1, 6):
+        room = mixed_room(seed)
+        things = [region.name for region in room.floor_regions] \
+            + [box.name for box in room.objects if box.name]
+        assert sorted(things) == sorted(MIXED)
+        assert sum(region.reflectance == 0.0 for region in room.floor_regions) == 2
+        assert (truth_raster(room).classes == RASTER_DROP_OFF).sum() > 100
+        low, high = room.bounds()  # the walls'
+        for region in room.floor_regions:
+            assert (region.corners > low + 0.05).all() and (region.corners < high - 0.05).all()
+        assert_path_clear(room, seed)
 
 
 def test_the_benchmark_measures_random_rooms_and_their_worst(capsys):
@@ -43,3 +64,11 @@ def test_the_benchmark_measures_random_rooms_and_their_worst(capsys):
                                               for k in (1, 2))
     assert worst["rooms_with_free_drop_off"] == 0
     assert 0.0 < worst["ramp_f1_min"] <= worst["ramp_f1_mean"] <= 1.0
+
+
+def test_the_benchmark_measures_mixed_rooms(capsys):
+    assert main(["--mixed", "1", "--quick"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"mixed_room(1)", "worst"}
+    assert out["worst"]["rooms"] == 1
+    assert out["worst"]["drop_free"] == out["mixed_room(1)"]["drop_free"]
