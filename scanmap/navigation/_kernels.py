@@ -470,12 +470,16 @@ def bridged_steps(heights: np.ndarray, max_step: float) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -> np.ndarray:
-    """Slope (rad) of the plane fitted to each candidate cell's floor heights and those of
-    the candidates within `radius` cells whose heights differ from it by at most
-    `max_step` (the other side of a step is another surface). With fewer than six, or all
-    on one line (the foot of a wall, a laser line's arc), the slope along them: a chain of
-    cells each a little lower than the last is steep even where no plane fits it. NaN with
-    fewer than three."""
+    """Slope (rad) of each candidate cell's floor: the steepest of the planes fitted to its
+    height and those of the candidates within `radius` cells at or above it (up to
+    `max_step`: the other side of a step is another surface), at or below it, and both.
+    A cell at a crease lies on one of the two surfaces, and the side its height is on
+    holds that surface alone: the first row of a steep ramp, a few mm above the floor, is
+    steep (one plane over both surfaces bent it to half the ramp's slope), and the floor
+    before it, the lowest there, keeps the gentler mixed fit above it. Each fit
+    (`_plane_slope`): with fewer than six cells, or all on one line (the foot of a wall, a
+    laser line's arc), the slope along them: a chain of cells each a little lower than
+    the last is steep even where no plane fits it; NaN with fewer than three."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
     for y in range(ny):
@@ -483,7 +487,12 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
             hc = heights[y, x]
             if np.isnan(hc):
                 continue
+            # Plane-fit sums over all the cells within reach and a step, over those above
+            # (dz > 0) and over those level with it (dz = 0: on both sides); below = all -
+            # above (the level ones add nothing to the height sums)
             n, sx, sy, sz, sxx, sxy, syy, sxz, syz = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            nu, ux, uy, uz, uxx, uxy, uyy, uxz, uyz = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            n0, zx, zy, zxx, zxy, zyy = 0, 0.0, 0.0, 0.0, 0.0, 0.0
             for yy in range(max(y - radius, 0), min(y + radius + 1, ny)):
                 for xx in range(max(x - radius, 0), min(x + radius + 1, nx)):
                     dz = heights[yy, xx] - hc
@@ -498,18 +507,51 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
                         syy += py * py
                         sxz += px * dz
                         syz += py * dz
-            if n < 3:
-                continue
-            cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
-            cxz, cyz = sxz - sx * sz / n, syz - sy * sz / n
-            det = cxx * cyy - cxy * cxy
-            if n >= 6 and det > 1e-12 * res ** 4:
-                gx = (cyy * cxz - cxy * cyz) / det
-                gy = (cxx * cyz - cxy * cxz) / det
-                out[y, x] = math.atan(math.hypot(gx, gy))
-            elif cxx + cyy > 0.0:  # the least-squares slope along their principal line
-                out[y, x] = math.atan(math.hypot(cxz, cyz) / (cxx + cyy))
+                        if dz > 0.0:
+                            nu += 1
+                            ux += px
+                            uy += py
+                            uz += dz
+                            uxx += px * px
+                            uxy += px * py
+                            uyy += py * py
+                            uxz += px * dz
+                            uyz += py * dz
+                        elif dz == 0.0:
+                            n0 += 1
+                            zx += px
+                            zy += py
+                            zxx += px * px
+                            zxy += px * py
+                            zyy += py * py
+            slope = max(
+                _plane_slope(n, sx, sy, sz, sxx, sxy, syy, sxz, syz, res),
+                _plane_slope(nu + n0, ux + zx, uy + zy, uz, uxx + zxx, uxy + zxy, uyy + zyy,
+                             uxz, uyz, res),
+                _plane_slope(n - nu, sx - ux, sy - uy, sz - uz, sxx - uxx, sxy - uxy,
+                             syy - uyy, sxz - uxz, syz - uyz, res))
+            if slope > -np.inf:  # a fit on either side or over both
+                out[y, x] = slope
     return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plane_slope(n: int, sx: float, sy: float, sz: float, sxx: float, sxy: float,
+                 syy: float, sxz: float, syz: float, res: float) -> float:
+    """Slope (rad) of the least-squares plane of n cells from their sums (offsets x, y in
+    m from the cell, heights z above it; see `local_slope`); -inf with fewer than three."""
+    if n < 3:
+        return -np.inf
+    cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
+    cxz, cyz = sxz - sx * sz / n, syz - sy * sz / n
+    det = cxx * cyy - cxy * cxy
+    if n >= 6 and det > 1e-12 * res ** 4:
+        gx = (cyy * cxz - cxy * cyz) / det
+        gy = (cxx * cyz - cxy * cxz) / det
+        return math.atan(math.hypot(gx, gy))
+    if cxx + cyy > 0.0:  # the least-squares slope along their principal line
+        return math.atan(math.hypot(cxz, cyz) / (cxx + cyy))
+    return -np.inf
 
 
 @njit(cache=True, nogil=True)

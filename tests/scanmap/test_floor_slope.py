@@ -47,6 +47,22 @@ def test_a_staircase_of_small_steps_along_a_wall_is_steep():
     assert (slope[3, 1:-1] > math.radians(30.0)).all()
 
 
+@settings(max_examples=40, deadline=None)
+@given(degrees=st.floats(3.0, 35.0))
+def test_the_first_row_of_a_ramp_has_the_ramps_slope_and_the_floor_before_it_less(degrees):
+    # Floor up to row 4, a ramp rising from the boundary between rows 4 and 5: row 5's
+    # centre lies tan(slope) x 2.5 cm up. One plane over both surfaces gave it about half
+    # the ramp's slope (a 20 deg ramp's first row counted as floor); the cells at or above
+    # it are the ramp alone, so its slope is the ramp's, and the floor before it, the
+    # lowest there, stays under max_slope (7 deg beside a 20 deg ramp, 14 beside 35)
+    heights = np.zeros((12, 9))
+    heights[5:] = math.tan(math.radians(degrees)) * (np.arange(5, 12)[:, None] - 4.5) * RES
+    slope = nk.local_slope(heights, REACH, STEP, RES)
+    assert np.allclose(slope[5:10, 2:7], math.radians(degrees), atol=1e-4)
+    assert (slope[4, 2:7] < math.radians(15.0)).all()
+    assert (slope[:3, 2:7] == 0.0).all()
+
+
 def test_too_few_cells_have_no_slope():
     heights = np.full((5, 5), np.nan)
     heights[2, 2] = heights[2, 3] = 0.0
