@@ -482,6 +482,7 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
     the last is steep even where no plane fits it; NaN with fewer than three."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
+    none = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for y in range(ny):
         for x in range(nx):
             hc = heights[y, x]
@@ -490,56 +491,45 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
             # Plane-fit sums over all the cells within reach and a step, over those above
             # (dz > 0) and over those level with it (dz = 0: on both sides); below = all -
             # above (the level ones add nothing to the height sums)
-            n, sx, sy, sz, sxx, sxy, syy, sxz, syz = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-            nu, ux, uy, uz, uxx, uxy, uyy, uxz, uyz = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-            n0, zx, zy, zxx, zxy, zyy = 0, 0.0, 0.0, 0.0, 0.0, 0.0
+            every, above, level = none, none, none
             for yy in range(max(y - radius, 0), min(y + radius + 1, ny)):
                 for xx in range(max(x - radius, 0), min(x + radius + 1, nx)):
                     dz = heights[yy, xx] - hc
                     if abs(dz) <= max_step:  # False for NaN
                         px, py = (xx - x) * res, (yy - y) * res
-                        n += 1
-                        sx += px
-                        sy += py
-                        sz += dz
-                        sxx += px * px
-                        sxy += px * py
-                        syy += py * py
-                        sxz += px * dz
-                        syz += py * dz
+                        every = _with_cell(every, px, py, dz)
                         if dz > 0.0:
-                            nu += 1
-                            ux += px
-                            uy += py
-                            uz += dz
-                            uxx += px * px
-                            uxy += px * py
-                            uyy += py * py
-                            uxz += px * dz
-                            uyz += py * dz
+                            above = _with_cell(above, px, py, dz)
                         elif dz == 0.0:
-                            n0 += 1
-                            zx += px
-                            zy += py
-                            zxx += px * px
-                            zxy += px * py
-                            zyy += py * py
-            slope = max(
-                _plane_slope(n, sx, sy, sz, sxx, sxy, syy, sxz, syz, res),
-                _plane_slope(nu + n0, ux + zx, uy + zy, uz, uxx + zxx, uxy + zxy, uyy + zyy,
-                             uxz, uyz, res),
-                _plane_slope(n - nu, sx - ux, sy - uy, sz - uz, sxx - uxx, sxy - uxy,
-                             syy - uyy, sxz - uxz, syz - uyz, res))
+                            level = _with_cell(level, px, py, dz)
+            slope = max(_plane_slope(every, res), _plane_slope(_sum(above, level, 1.0), res),
+                        _plane_slope(_sum(every, above, -1.0), res))
             if slope > -np.inf:  # a fit on either side or over both
                 out[y, x] = slope
     return out
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _plane_slope(n: int, sx: float, sy: float, sz: float, sxx: float, sxy: float,
-                 syy: float, sxz: float, syz: float, res: float) -> float:
-    """Slope (rad) of the least-squares plane of n cells from their sums (offsets x, y in
-    m from the cell, heights z above it; see `local_slope`); -inf with fewer than three."""
+def _with_cell(s: tuple, px: float, py: float, dz: float) -> tuple:
+    """Plane-fit sums `s` (n, sx, sy, sz, sxx, sxy, syy, sxz, syz: offsets x, y in m from
+    the cell, heights z above it) with one more cell."""
+    return (s[0] + 1.0, s[1] + px, s[2] + py, s[3] + dz, s[4] + px * px, s[5] + px * py,
+            s[6] + py * py, s[7] + px * dz, s[8] + py * dz)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sum(a: tuple, b: tuple, sign: float) -> tuple:
+    """The sums a + sign * b, term by term."""
+    return (a[0] + sign * b[0], a[1] + sign * b[1], a[2] + sign * b[2], a[3] + sign * b[3],
+            a[4] + sign * b[4], a[5] + sign * b[5], a[6] + sign * b[6], a[7] + sign * b[7],
+            a[8] + sign * b[8])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plane_slope(s: tuple, res: float) -> float:
+    """Slope (rad) of the least-squares plane of the cells summed in `s` (`_with_cell`;
+    see `local_slope`); -inf with fewer than three."""
+    n, sx, sy, sz, sxx, sxy, syy, sxz, syz = s
     if n < 3:
         return -np.inf
     cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
