@@ -23,8 +23,6 @@ from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.ideal import ideal_scans
 
 STEP = 0.05
-
-
 TOLERANCE = FloorConfig().plane_tolerance
 
 
