@@ -30,8 +30,12 @@ between two floor cells at most `max_hole` apart (the shadow of the rim: not the
 between the laser's samples, nor the shadow of an object standing beside the
 drop-off), and from that shadow one cell on up to the rim but for the gaps between floor
 samples (below), so its edge is within a cell of the last floor seen (the cells showing
-the drop-off themselves are where it is: no cell on from them). DROP_OFF is never free
-and lethal in the costmap.
+the drop-off themselves are where it is: no cell on from them). It spreads across the
+scanner's view (between its lines) but not away from where the robot stood, beyond the
+cells that show it (past a hole's far wall the floor is lit, its unlit cells are gaps
+between the lines), and towards it only across the rim's shadow (`rim_shadow`): rays
+that cross the floor's height at a hole's near rim pass below it only farther on.
+DROP_OFF is never free and lethal in the costmap.
 
 No return is not free: a cell is FREE only where the floor was seen - a floor hit in the
 cell - or is known otherwise: the cells the robot's footprint overlaps at the poses it
@@ -154,7 +158,11 @@ class FloorConfig:
     for its coverage (0: the cell alone); the cell itself must have seen one.
     slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over.
     drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
-    without observed floor. max_hole: the largest patch without hits (m, each side of its
+    without observed floor, no farther from the nearest place the robot stood than they
+    (and a cell), nearer by at most rim_shadow times their range (and a cell): rays
+    reach step_height and a height bin or two below the floor (`below_floor`) about
+    (step_height + 2 mask_dz) / camera height times the range past the rim, 0.1 for a
+    camera 1 m up. max_hole: the largest patch without hits (m, each side of its
     bounding box) inside consistent floor that is taken as floor. max_gap: the widest
     opening (m) between two floor samples along a row, column or diagonal taken as floor
     (the cells at its ends may be lit on part of their width only, so at most max_gap
@@ -197,6 +205,7 @@ class FloorConfig:
     detect: bool = True
     slope_reach: float = 0.1
     drop_reach: float = 0.5
+    rim_shadow: float = 0.1
     max_hole: float = 0.3
     max_gap: float = 0.3
     floor_probe: float = 0.1
@@ -377,12 +386,19 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         shadow &= ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
                                    floor_height, round(params.max_hole / res),
                                    robot.step_height)  # nor between floor samples
-        spread = morphology.dilate(drop, max(round(params.drop_reach / res), 1), within=shadow)
+        # no farther from the scanner than the cells that show it (and the one they lie
+        # in): beyond a hole's far wall the floor is lit, unlit cells are gaps between
+        # the laser's lines
+        ranges = _ranges(layers)
+        near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
+        spread = nk.spread_in_range(drop, shadow, ranges, near, ranges + 1.0,
+                                    max(round(params.drop_reach / res), 1))
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there)
-        drop |= morphology.dilate(spread & ~seeds) & (layers.nlev == 0) & ~nk.interpolated(
+        rim = (layers.nlev == 0) & ~nk.interpolated(
             is_floor | stood | holes, (layers.nlev > 0) | drop, floor_height, 2,
             robot.step_height)
+        drop |= nk.spread_in_range(spread & ~seeds, rim, ranges, near, ranges, 1)
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
@@ -482,6 +498,21 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
         if near[rows, cols][patch].any() and not near_drop[rows, cols][patch].any():
             out[rows, cols] |= patch
     return out
+
+
+def _ranges(layers: CellLayers) -> np.ndarray:
+    """Distance (cells) from each cell to the nearest place in the window the robot stood
+    (all 0 where it stood nowhere in it: no direction to tell)."""
+    ny, nx = layers.shape
+    stood = np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2)
+    cols = np.floor((stood[:, 0] - layers.origin[0]) / layers.resolution).astype(np.int64)
+    rows = np.floor((stood[:, 1] - layers.origin[1]) / layers.resolution).astype(np.int64)
+    inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
+    if not inside.any():
+        return np.zeros((ny, nx), np.float32)
+    cells = np.zeros((ny, nx), bool)
+    cells[rows[inside], cols[inside]] = True
+    return distance_transform(cells)[0]
 
 
 def _below_model(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,

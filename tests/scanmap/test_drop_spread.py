@@ -1,0 +1,95 @@
+"""How far a drop-off spreads through the unlit cells round the cells that show it
+(`_kernels.spread_in_range`): against ndimage and a plain level-by-level search, and on
+the simulator's `hazards` scene, beyond a hole seen from one side."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy import ndimage
+
+from benchmarks.bench_hazards import ROBOT, mapped, truth_classes
+from scanmap.navigation import DROP_OFF
+from scanmap.navigation import _kernels as nk
+from scanmap_driver.sim import RASTER_FLOOR, builtin_scene, truth_raster
+
+SQUARE = np.ones((3, 3), bool)
+shapes = st.tuples(st.integers(1, 30), st.integers(1, 30))
+
+
+def spread_reference(seeds, within, ranges, low, high, steps):
+    """`spread_in_range` level by level: a cell of `within` joins at the first depth where
+    a neighbour reached at the depth before holds its range in its bounds, and takes the
+    widest bounds of all such neighbours."""
+    ny, nx = seeds.shape
+    out = seeds.copy()
+    lows = np.where(seeds, low, np.nan)
+    highs = np.where(seeds, high, np.nan)
+    front = seeds.copy()
+    for _ in range(steps):
+        new = np.zeros_like(seeds)
+        new_low = np.full(seeds.shape, np.inf)
+        new_high = np.full(seeds.shape, -np.inf)
+        for y, x in zip(*np.nonzero(front), strict=True):
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if out[yy, xx] or not within[yy, xx]:
+                        continue
+                    if lows[y, x] <= ranges[yy, xx] <= highs[y, x]:
+                        new[yy, xx] = True
+                        new_low[yy, xx] = min(new_low[yy, xx], lows[y, x])
+                        new_high[yy, xx] = max(new_high[yy, xx], highs[y, x])
+        out |= new
+        lows[new], highs[new] = new_low[new], new_high[new]
+        front = new
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(data=st.data(), steps=st.integers(1, 12))
+def test_unbounded_it_is_the_geodesic_dilation(data, steps):
+    seeds = data.draw(arrays(np.bool_, shapes))
+    within = data.draw(arrays(np.bool_, seeds.shape))
+    ranges = np.zeros(seeds.shape, np.float32)
+    assert np.array_equal(
+        nk.spread_in_range(seeds, within, ranges, ranges - 1.0, ranges + 1.0, steps),
+        ndimage.binary_dilation(seeds, SQUARE, iterations=steps, mask=within))
+
+
+@settings(max_examples=80, deadline=None)
+@given(data=st.data(), steps=st.integers(1, 8))
+def test_it_matches_the_plain_search(data, steps):
+    seeds = data.draw(arrays(np.bool_, shapes))
+    within = data.draw(arrays(np.bool_, seeds.shape, elements=st.booleans()))
+    ranges = data.draw(arrays(np.float32, seeds.shape, elements=st.integers(0, 6)))
+    below = data.draw(arrays(np.float32, seeds.shape, elements=st.integers(0, 3)))
+    above = data.draw(arrays(np.float32, seeds.shape, elements=st.integers(0, 3)))
+    low, high = ranges - below, ranges + above
+    assert np.array_equal(nk.spread_in_range(seeds, within, ranges, low, high, steps),
+                          spread_reference(seeds, within, ranges, low, high, steps))
+
+
+def test_the_floor_beyond_a_hole_seen_from_one_side_is_never_a_drop_off():
+    # The first scan of `hazards`, from 1.4 m before the stairwell's near corner: the
+    # floor behind the hole is lit along the laser's lines only, and the gaps between
+    # them beyond its far wall used to be DROP_OFF (the drop-off spread into them from
+    # the wall's hits)
+    scene = builtin_scene("hazards")
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
+    step = next(mapped(scene, 1))
+    seg = step.seg
+    xs, ys = (seg.origin[axis] + (np.arange(seg.shape[1 - axis]) + 0.5) * seg.resolution
+              for axis in (0, 1))
+    robot = step.ideal.pose_start[:2, 3]
+    ranges = np.hypot(xs[None, :] - robot[0], ys[:, None] - robot[1])
+    well = next(r for r in scene.floor_regions if r.name == "stairwell")
+    inside = well.contains(*np.meshgrid(xs, ys))
+    # Farther than the hole by more than two cells: the spread may pass its wall's hits
+    # by a cell, and ranges are measured from the centre of the cell the robot stood in
+    apart = ndimage.distance_transform_edt(~inside) * seg.resolution
+    beyond = (apart <= 1.0) & (ranges > ranges[inside].max() + 2 * seg.resolution)
+    floor = truth_classes(seg, raster) == RASTER_FLOOR
+    assert (beyond & floor & seg.is_floor).sum() > 50  # the floor there is seen
+    assert not (beyond & floor & (seg.state == DROP_OFF)).any()
