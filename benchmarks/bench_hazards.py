@@ -18,6 +18,9 @@ slope). Rows:
 * drop-off edge error: for every DROP_OFF cell next to a FREE cell (the edge a robot
   drives up to), its distance (cells) to the nearest true drop-off cell; the maximum
   and the share within one cell.
+* false drop-offs: DROP_OFF cells on true floor more than a cell (1.5 cells) from any
+  true drop-off, after the worst scan: on `hazards`, over the placements and over the
+  random rooms (a robot that sees a drop-off where there is none will not drive there).
 * ramp F1: floor (traversable surface) against truth over the observed cells (any hit)
   of the sloped floor regions, a ramp within max_slope and one steeper.
 * placed anew: the same scene shifted within a cell and turned (`Scene.moved`), so its
@@ -148,12 +151,14 @@ def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
     errors = drop_off_errors(seg, raster, np.eye(4)) or {  # a scene without drop-offs
         "free_cells_on_drop_offs": 0, "free_cells_inside_drop_offs": 0,
         "drop_off_edge_cells": 0, "drop_off_edge_error_cells": 0.0,
-        "drop_off_edge_within_one": 1.0}
+        "drop_off_edge_within_one": 1.0,
+        "false_drop_off_cells": int((seg.state == DROP_OFF).sum())}
     return {"drop_free_strict": errors["free_cells_on_drop_offs"],
             "drop_free": errors["free_cells_inside_drop_offs"],
             "edge_cells": errors["drop_off_edge_cells"],
             "edge_error_cells": errors["drop_off_edge_error_cells"],
             "edge_within_one": errors["drop_off_edge_within_one"],
+            "drop_false": errors["false_drop_off_cells"],
             "drop_found": int(((seg.state == DROP_OFF) & (truth == TRUE_DROP_OFF)).sum()),
             "drop_cells": int((truth == TRUE_DROP_OFF).sum())}
 
@@ -180,20 +185,21 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
 def hazard_run(scans: int | None = None, seed: int = 0,
                scene: Scene | None = None) -> dict[str, float]:
     """The drop-off and ramp measures on a scene with hazards (the built-in `hazards`)
-    after its last scan, the worst count of free drop-off cells, the worst edge error and
-    the least share of the edge within one cell over all scans."""
+    after its last scan, the worst counts of free and of false drop-off cells, the worst
+    edge error and the least share of the edge within one cell over all scans."""
     scene = scene or builtin_scene("hazards")
     raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height,
                           max_slope=PARAMS.max_slope)
-    worst, edge_worst, within_worst = 0, 0.0, 1.0
+    worst, edge_worst, within_worst, false_worst = 0, 0.0, 1.0, 0
     for step in mapped(scene, scans, seed):
         truth = truth_classes(step.seg, raster)
         measures = drop_measures(step.seg, truth, raster)
         worst = max(worst, measures["drop_free"])
+        false_worst = max(false_worst, measures["drop_false"])
         edge_worst = max(edge_worst, measures["edge_error_cells"])
         within_worst = min(within_worst, measures["edge_within_one"])
     return {**measures, "drop_free_any_scan": worst, "edge_error_any_scan": edge_worst,
-            "edge_within_one_any_scan": within_worst,
+            "edge_within_one_any_scan": within_worst, "drop_false_any_scan": false_worst,
             "ramp_f1": ramp_f1(step.seg, truth, step.hits, scene)}
 
 
@@ -261,6 +267,7 @@ def worst_over(runs: list[dict[str, float]]) -> dict[str, float]:
     the runs that saw a ramp; NaN if none did)."""
     f1 = [r["ramp_f1"] for r in runs if not math.isnan(r["ramp_f1"])]
     return {"drop_free_any_scan": max(r["drop_free_any_scan"] for r in runs),
+            "drop_false_any_scan": max(r["drop_false_any_scan"] for r in runs),
             "edge_error_cells": max(r["edge_error_cells"] for r in runs),
             "edge_within_one": min(r["edge_within_one"] for r in runs),
             "ramp_f1_min": min(f1, default=math.nan),
@@ -382,6 +389,11 @@ def run(quick: bool = False) -> list[dict]:
         {"stage": "hazards", "method": "drop-off cells free or traversable (gate)",
          "settings": f"built-in hazards scene, {settings}", "median_s": per_scan,
          "error": h["drop_free"], "error_unit": "cells (goal 0)", **h, "peers": {}},
+        {"stage": "hazards", "method": "drop-off cells on floor a cell off any drop-off",
+         "settings": f"built-in hazards scene, {settings}; 8 placements; random rooms",
+         "median_s": None, "error": h["drop_false_any_scan"],
+         "error_unit": f"cells after the worst scan ({placed['drop_false_any_scan']} placed, "
+         f"{rooms['drop_false_any_scan']} in rooms)", "peers": {}},
         {"stage": "hazards", "method": "ramp floor F1", "settings": "7 and 20 deg ramps",
          "median_s": None, "error": 1.0 - h["ramp_f1"], "error_unit": "1 - F1 (goal 0.03)",
          "peers": {}},

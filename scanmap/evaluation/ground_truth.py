@@ -19,7 +19,8 @@
   observed (anything but unknown); the edge error: from each map DROP_OFF cell beside a
   FREE one (8 neighbours: the edge a robot drives up to) to the nearest true drop-off
   cell, in map cells, its largest value and the share within one cell (issue 17: the
-  edge within one cell of the truth).
+  edge within one cell of the truth); false drop-offs: the map's DROP_OFF cells on true
+  floor more than a cell (1.5 cells, diagonals included) from any true drop-off.
 """
 
 from __future__ import annotations
@@ -143,7 +144,10 @@ def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.n
                                 seg, world_from_map)
     edge = drop & morphology.dilate(free)
     distance = distance_transform(true_drop)[0] * (raster.resolution / seg.resolution)
-    edge_error = _raster_at_cells(distance, raster, seg, world_from_map, np.inf)[edge]
+    off_truth = _raster_at_cells(distance, raster, seg, world_from_map, np.inf)
+    edge_error = off_truth[edge]
+    on_floor = _raster_at_cells(raster.classes == RASTER_FLOOR, raster, seg, world_from_map,
+                                False)
     on_drop = _raster_at_cells(true_drop, raster, seg, world_from_map, False)
     inside = morphology.min_filter(on_drop, 3) > 0  # more than a cell from the edge
     return {"free_cells_on_drop_offs": int((free & on_drop).sum()),
@@ -153,7 +157,8 @@ def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.n
             "drop_off_edge_cells": int(edge.sum()),
             "drop_off_edge_error_cells": float(edge_error.max()) if edge.any() else 0.0,
             "drop_off_edge_within_one": float((edge_error <= 1.0).mean()) if edge.any()
-            else 1.0}
+            else 1.0,
+            "false_drop_off_cells": int((drop & on_floor & (off_truth > 1.5)).sum())}
 
 
 def _raster_at_cells(values: np.ndarray, raster: TruthRaster, seg: Segmentation,

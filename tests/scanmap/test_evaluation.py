@@ -81,6 +81,7 @@ def test_a_perfect_map_finds_every_drop_off_and_places_its_edge_on_it(hazards_ra
     assert errors["drop_off_recall"] == 1.0
     assert errors["drop_off_edge_cells"] > 100  # the stairwell's and the dock's rims
     assert errors["drop_off_edge_error_cells"] == 0.0 and errors["drop_off_edge_within_one"] == 1
+    assert errors["false_drop_off_cells"] == 0
     office = evaluation.map_errors(segmentation_of(office_raster), office_raster, np.eye(4))
     assert "drop_off_recall" not in office  # no drop-off in the scene: nothing to report
 
@@ -107,6 +108,19 @@ def test_a_drop_off_reported_a_cell_wider_has_its_edge_a_cell_out(hazards_raster
     assert errors["drop_off_edge_error_cells"] == pytest.approx(np.sqrt(2))
     assert 0.8 < errors["drop_off_edge_within_one"] < 1.0
     assert errors["drop_off_recall"] == 1.0 and errors["free_cells_on_drop_offs"] == 0
+    assert errors["false_drop_off_cells"] == 0  # within a cell is no false claim
+
+
+def test_a_drop_off_reported_two_cells_wider_claims_its_outer_ring_falsely(hazards_raster):
+    seg = segmentation_of(hazards_raster)
+    drop = seg.state == DROP_OFF
+    once, twice = morphology.dilate(drop), morphology.dilate(drop, 2)
+    state = seg.state.copy()
+    state[twice & (seg.state == FREE)] = DROP_OFF
+    errors = evaluation.map_errors(dataclasses.replace(seg, state=state), hazards_raster,
+                                   np.eye(4))
+    ring = twice & ~once & (seg.state == FREE)
+    assert ring.sum() > 100 and errors["false_drop_off_cells"] == ring.sum()
 
 
 def test_statistics_and_trajectory_errors_in_closed_form():
