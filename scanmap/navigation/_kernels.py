@@ -569,52 +569,6 @@ def below_floor(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
     return out
 
 
-@njit(cache=True, nogil=True)
-def spread_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
-                    low: np.ndarray, high: np.ndarray, steps: int) -> np.ndarray:
-    """The cells of `seeds`, and those of `within` at most `steps` 8-connected moves from
-    them through cells of `within` whose range lies in the seed's [low, high]: a
-    breadth-first search that carries each seed's range bounds (the widest, where two
-    seeds reach a cell at the same depth)."""
-    ny, nx = seeds.shape
-    out = seeds.copy()
-    queue = np.empty(ny * nx, np.int64)
-    depth = np.zeros(ny * nx, np.int32)
-    lows = np.empty(ny * nx, np.float32)
-    highs = np.empty(ny * nx, np.float32)
-    tail = 0
-    for y in range(ny):
-        for x in range(nx):
-            if seeds[y, x]:
-                cell = y * nx + x
-                queue[tail] = cell
-                lows[cell], highs[cell] = low[y, x], high[y, x]
-                tail += 1
-    head = 0
-    while head < tail:
-        cell = queue[head]
-        head += 1
-        d = depth[cell]
-        if d >= steps:
-            continue
-        y, x = cell // nx, cell % nx
-        lo, hi = lows[cell], highs[cell]
-        for yy in range(max(y - 1, 0), min(y + 2, ny)):
-            for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                if not within[yy, xx] or not lo <= ranges[yy, xx] <= hi:
-                    continue
-                n = yy * nx + xx
-                if not out[yy, xx]:
-                    out[yy, xx] = True
-                    depth[n] = d + 1
-                    lows[n], highs[n] = lo, hi
-                    queue[tail] = n
-                    tail += 1
-                elif depth[n] == d + 1 and not seeds[yy, xx]:  # not popped yet
-                    lows[n], highs[n] = min(lows[n], lo), max(highs[n], hi)
-    return out
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _popcount(v: np.uint64) -> int:
     """Set bits of v, by adding neighbouring bit counts in parallel (a dozen operations

@@ -391,14 +391,14 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         # the laser's lines
         ranges = _ranges(layers)
         near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
-        spread = nk.spread_in_range(drop, shadow, ranges, near, ranges + 1.0,
-                                    max(round(params.drop_reach / res), 1))
+        spread = morphology.dilate_in_range(drop, shadow, ranges, near, ranges + 1.0,
+                                            max(round(params.drop_reach / res), 1))
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there)
         rim = (layers.nlev == 0) & ~nk.interpolated(
             is_floor | stood | holes, (layers.nlev > 0) | drop, floor_height, 2,
             robot.step_height)
-        drop |= nk.spread_in_range(spread & ~seeds, rim, ranges, near, ranges, 1)
+        drop |= morphology.dilate_in_range(spread & ~seeds, rim, ranges, near, ranges, 1)
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one

@@ -1,7 +1,8 @@
 """Binary morphology and connected components on cell masks, by OpenCV and Numba.
 
 The segmentation needs a few of scipy.ndimage's operations on small boolean grids:
-dilation by the 3 x 3 square (also geodesic: grown only inside a mask, a step at a time),
+dilation by the 3 x 3 square (also geodesic: grown only inside a mask, a step at a time,
+and only into cells within a range of the seed's),
 square minimum and maximum filters, and 8-connected components with their bounding
 boxes. OpenCV's versions of these, and a breadth-first search for the geodesic dilation
 (one pass instead of a dilation and a copy per step), give the same results (tested
@@ -31,21 +32,46 @@ def dilate(mask: np.ndarray, iterations: int = 1, within: np.ndarray | None = No
                            np.ascontiguousarray(within, dtype=np.bool_), max(iterations, 0))
 
 
-@njit(cache=True, nogil=True)
 def geodesic_dilate(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndarray:
     """The cells of `mask`, and those of `within` at most `steps` 8-connected moves from
     it through cells of `within` (`dilate` with `within`)."""
-    ny, nx = mask.shape
-    out = mask.copy()
+    return _breadth_first(mask, within, steps, _UNBOUNDED, _UNBOUNDED, _UNBOUNDED, False)
+
+
+def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
+                    low: np.ndarray, high: np.ndarray, steps: int) -> np.ndarray:
+    """`geodesic_dilate` of `seeds` through the cells of `within` whose value in `ranges`
+    lies in the bounds (`low`, `high`) of the seed they came from (the widest, where two
+    seeds reach a cell at the same depth): a drop-off's spread kept to the ranges from
+    the scanner that the cells showing it lie at."""
+    return _breadth_first(seeds, within, steps, ranges, low, high, True)
+
+
+_UNBOUNDED = np.zeros((1, 1), np.float32)  # `ranges` and its bounds, unused
+
+
+@njit(cache=True, nogil=True)
+def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np.ndarray,
+                   low: np.ndarray, high: np.ndarray, bounded: bool) -> np.ndarray:
+    """`geodesic_dilate`, and with `bounded` `dilate_in_range`: one pass from a queue of
+    the seeds instead of a dilation and a copy per step."""
+    ny, nx = seeds.shape
+    out = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
     depth = np.zeros(ny * nx, np.int32)
+    size = ny * nx if bounded else 1
+    lows, highs = np.empty(size, np.float32), np.empty(size, np.float32)
     tail = 0
     for y in range(ny):
         for x in range(nx):
-            if mask[y, x]:
-                queue[tail] = y * nx + x
+            if seeds[y, x]:
+                cell = y * nx + x
+                queue[tail] = cell
                 tail += 1
+                if bounded:
+                    lows[cell], highs[cell] = low[y, x], high[y, x]
     head = 0
+    lo, hi = np.float32(0.0), np.float32(0.0)
     while head < tail:
         cell = queue[head]
         head += 1
@@ -53,13 +79,22 @@ def geodesic_dilate(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndar
         if d >= steps:
             continue
         y, x = cell // nx, cell % nx
+        if bounded:
+            lo, hi = lows[cell], highs[cell]
         for yy in range(max(y - 1, 0), min(y + 2, ny)):
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                if within[yy, xx] and not out[yy, xx]:
+                if not within[yy, xx] or (bounded and not lo <= ranges[yy, xx] <= hi):
+                    continue
+                n = yy * nx + xx
+                if not out[yy, xx]:
                     out[yy, xx] = True
-                    depth[yy * nx + xx] = d + 1
-                    queue[tail] = yy * nx + xx
+                    depth[n] = d + 1
+                    queue[tail] = n
                     tail += 1
+                    if bounded:
+                        lows[n], highs[n] = lo, hi
+                elif bounded and depth[n] == d + 1 and not seeds[yy, xx]:  # not popped yet
+                    lows[n], highs[n] = min(lows[n], lo), max(highs[n], hi)
     return out
 
 

@@ -1,5 +1,5 @@
 """How far a drop-off spreads through the unlit cells round the cells that show it
-(`_kernels.spread_in_range`): against ndimage and a plain level-by-level search, and on
+(`morphology.dilate_in_range`): against ndimage and a plain level-by-level search, and on
 the simulator's `hazards` scene, beyond a hole seen from one side."""
 
 from __future__ import annotations
@@ -11,8 +11,7 @@ from hypothesis.extra.numpy import arrays
 from scipy import ndimage
 
 from benchmarks.bench_hazards import ROBOT, mapped, truth_classes
-from scanmap.navigation import DROP_OFF
-from scanmap.navigation import _kernels as nk
+from scanmap.navigation import DROP_OFF, morphology
 from scanmap_driver.sim import RASTER_FLOOR, builtin_scene, truth_raster
 
 SQUARE = np.ones((3, 3), bool)
@@ -20,7 +19,7 @@ shapes = st.tuples(st.integers(1, 30), st.integers(1, 30))
 
 
 def spread_reference(seeds, within, ranges, low, high, steps):
-    """`spread_in_range` level by level: a cell of `within` joins at the first depth where
+    """`dilate_in_range` level by level: a cell of `within` joins at the first depth where
     a neighbour reached at the depth before holds its range in its bounds, and takes the
     widest bounds of all such neighbours."""
     ny, nx = seeds.shape
@@ -54,7 +53,7 @@ def test_unbounded_it_is_the_geodesic_dilation(data, steps):
     within = data.draw(arrays(np.bool_, seeds.shape))
     ranges = np.zeros(seeds.shape, np.float32)
     assert np.array_equal(
-        nk.spread_in_range(seeds, within, ranges, ranges - 1.0, ranges + 1.0, steps),
+        morphology.dilate_in_range(seeds, within, ranges, ranges - 1.0, ranges + 1.0, steps),
         ndimage.binary_dilation(seeds, SQUARE, iterations=steps, mask=within))
 
 
@@ -67,7 +66,7 @@ def test_it_matches_the_plain_search(data, steps):
     below = data.draw(arrays(np.float32, seeds.shape, elements=st.integers(0, 3)))
     above = data.draw(arrays(np.float32, seeds.shape, elements=st.integers(0, 3)))
     low, high = ranges - below, ranges + above
-    assert np.array_equal(nk.spread_in_range(seeds, within, ranges, low, high, steps),
+    assert np.array_equal(morphology.dilate_in_range(seeds, within, ranges, low, high, steps),
                           spread_reference(seeds, within, ranges, low, high, steps))
 
 
