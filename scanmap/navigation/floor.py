@@ -386,9 +386,9 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         shadow &= ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
                                    floor_height, round(params.max_hole / res),
                                    robot.step_height)  # nor between floor samples
-        # no farther from the scanner than the cells that show it (and the one they lie
-        # in): beyond a hole's far wall the floor is lit, unlit cells are gaps between
-        # the laser's lines
+        # across the scanner's view, no farther from where the robot stood than the cells
+        # that show it (and a cell: beyond a hole's far wall the floor is lit, its unlit
+        # cells are gaps between the laser's lines), nearer only across the rim's shadow
         ranges = _ranges(layers)
         near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
         spread = morphology.dilate_in_range(drop, shadow, ranges, near, ranges + 1.0,
