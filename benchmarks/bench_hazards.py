@@ -152,7 +152,7 @@ def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
         "free_cells_on_drop_offs": 0, "free_cells_inside_drop_offs": 0,
         "drop_off_edge_cells": 0, "drop_off_edge_error_cells": 0.0,
         "drop_off_edge_within_one": 1.0,
-        "false_drop_off_cells": int((seg.state == DROP_OFF).sum())}
+        "false_drop_off_cells": int(((seg.state == DROP_OFF) & (truth == TRUE_FLOOR)).sum())}
     return {"drop_free_strict": errors["free_cells_on_drop_offs"],
             "drop_free": errors["free_cells_inside_drop_offs"],
             "edge_cells": errors["drop_off_edge_cells"],
@@ -390,7 +390,8 @@ def run(quick: bool = False) -> list[dict]:
          "settings": f"built-in hazards scene, {settings}", "median_s": per_scan,
          "error": h["drop_free"], "error_unit": "cells (goal 0)", **h, "peers": {}},
         {"stage": "hazards", "method": "drop-off cells on floor a cell off any drop-off",
-         "settings": f"built-in hazards scene, {settings}; 8 placements; random rooms",
+         "settings": f"built-in hazards scene, {settings}; {placed['placements']} "
+         "placements; random rooms",
          "median_s": None, "error": h["drop_false_any_scan"],
          "error_unit": f"cells after the worst scan ({placed['drop_false_any_scan']} placed, "
          f"{rooms['drop_false_any_scan']} in rooms)", "peers": {}},
