@@ -112,6 +112,35 @@ def floor_candidates(levels: np.ndarray, nlev: np.ndarray, thickness: float,
 
 
 @njit(cache=True, nogil=True)
+def level_hypotheses(points: np.ndarray, triples: np.ndarray, min_nz: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """RANSAC's plane hypotheses: for each triple of row indices into `points` (N, 3), the
+    unit normal (z >= 0) of the plane through the three and its first point, kept where
+    the three span a plane (|cross product| > 1e-9) whose normal's z is at least
+    `min_nz` (near-horizontal). As numpy's cross, norm and division compute them (the
+    same values), without their per-call cost on a few hundred triples."""
+    normals = np.empty((triples.shape[0], 3))
+    anchors = np.empty((triples.shape[0], 3))
+    kept = 0
+    for t in range(triples.shape[0]):
+        a, b, c = points[triples[t, 0]], points[triples[t, 1]], points[triples[t, 2]]
+        u0, u1, u2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+        v0, v1, v2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+        n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if not norm > 1e-9:
+            continue
+        n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
+        if n2 < 0.0:
+            n0, n1, n2 = -n0, -n1, -n2
+        if n2 >= min_nz:
+            normals[kept, 0], normals[kept, 1], normals[kept, 2] = n0, n1, n2
+            anchors[kept, 0], anchors[kept, 1], anchors[kept, 2] = a[0], a[1], a[2]
+            kept += 1
+    return normals[:kept], anchors[:kept]
+
+
+@njit(cache=True, nogil=True)
 def plane_support(coords: np.ndarray, anchors: np.ndarray, normals: np.ndarray,
                   tolerance: float) -> np.ndarray:
     """Per plane hypothesis (a point on it and its unit normal), how many points lie within

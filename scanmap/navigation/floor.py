@@ -279,21 +279,14 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     """The near-horizontal plane with most inliers (refined by least squares), or None."""
     if len(points) < 3:
         return None
-    iterations = params.ransac_iterations
-    sample = points[rng.integers(0, len(points), (iterations, 3))]
-    normals = np.cross(sample[:, 1] - sample[:, 0], sample[:, 2] - sample[:, 0])
-    norms = np.linalg.norm(normals, axis=1)
-    ok = norms > 1e-9
-    normals = normals[ok] / norms[ok, None]
-    normals *= np.where(normals[:, 2] < 0, -1.0, 1.0)[:, None]
-    level = normals[:, 2] >= math.cos(params.max_slope)
-    if not level.any():
+    triples = rng.integers(0, len(points), (params.ransac_iterations, 3))
+    normals, anchors = nk.level_hypotheses(np.ascontiguousarray(points, dtype=np.float64),
+                                           triples, math.cos(params.max_slope))
+    if not len(normals):
         return None
-    normals, anchors = normals[level], sample[ok][level, 0]
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
     subset = coords[:, rng.integers(0, len(points), min(len(points), 4000))]
-    support = nk.plane_support(subset, np.ascontiguousarray(anchors),
-                               np.ascontiguousarray(normals), params.plane_tolerance)
+    support = nk.plane_support(subset, anchors, normals, params.plane_tolerance)
     best = int(np.argmax(support))
     normal, offset = normals[best], float(normals[best] @ anchors[best])
     for _ in range(2):  # refine on all inliers

@@ -69,6 +69,30 @@ def test_plane_moments_match_numpy_on_the_points_near_the_plane():
         np.testing.assert_allclose(scatter, d.T @ d, rtol=1e-10, atol=1e-12)
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_level_hypotheses_are_numpys_cross_products(seed):
+    """The compiled hypotheses equal numpy's cross, norm and flip, bit for bit, with
+    repeated and collinear triples (no plane) and steep planes dropped alike."""
+    rng = np.random.default_rng(seed)
+    points = rng.normal(0.0, 1.0, (12, 3)) * [2.0, 2.0, rng.uniform(0.001, 3.0)]
+    points[1] = points[0]  # a repeated point: every triple holding both spans nothing
+    points[2] = 2.0 * points[3] - points[4]  # 2, 3, 4 on one line
+    triples = rng.integers(0, len(points), (200, 3))
+    triples[:3] = [[0, 1, 5], [2, 3, 4], [6, 6, 6]]
+    min_nz = math.cos(math.radians(15.0))
+    normals, anchors = nk.level_hypotheses(points, triples, min_nz)
+    sample = points[triples]
+    want = np.cross(sample[:, 1] - sample[:, 0], sample[:, 2] - sample[:, 0])
+    norms = np.linalg.norm(want, axis=1)
+    ok = norms > 1e-9
+    want = want[ok] / norms[ok, None]
+    want *= np.where(want[:, 2] < 0, -1.0, 1.0)[:, None]
+    level = want[:, 2] >= min_nz
+    assert np.array_equal(normals, want[level])
+    assert np.array_equal(anchors, sample[ok][level, 0])
+
+
 def test_plane_support_matches_its_numpy_reference():
     rng = np.random.default_rng(5)
     points = rng.normal(0.0, 0.05, (700, 3))
