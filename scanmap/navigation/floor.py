@@ -320,9 +320,86 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
 
     fallback_floor: height assumed where no floor is known within fill_radius (e.g. 0.0
     for a 2-D laser that never sees the floor); None leaves those cells UNKNOWN.
+
+    Only the part of the window within reach of what was observed is segmented (every
+    rule reaches at most `_reach` cells from a hit, a cell rays saw or a place the robot
+    stood): beyond it each cell is UNKNOWN, off the floor, its floor height that of the
+    largest plane (else `fallback_floor`, else NaN), as segmenting the whole window gives
+    them (to the rounding of the cell centres, computed from another origin). A window
+    round the robot often holds much that no ray reached (behind a corridor's walls:
+    half of an 8 m window).
     """
     robot = robot or RobotShape()
     params = params or FloorConfig()
+    rows, cols = _observed_box(layers, robot, _reach(params, layers.resolution))
+    ny, nx = layers.shape
+    area = (rows.stop - rows.start) * (cols.stop - cols.start)
+    if not area or area > 0.8 * ny * nx:  # nothing seen, or little to leave out
+        return _segment(layers, robot, params, fallback_floor)
+    inner = _segment(_cropped(layers, rows, cols), robot, params, fallback_floor)
+    xs, ys = layers.cell_centers()
+    if inner.planes:
+        floor_height = inner.planes[0].height_at(xs[None, :], ys[:, None]).astype(np.float32)
+    else:
+        floor_height = np.full((ny, nx), np.nan if fallback_floor is None else fallback_floor,
+                               np.float32)
+    state = np.full((ny, nx), UNKNOWN, np.uint8)
+    points = np.empty((ny, nx, 2), np.float32)
+    points[..., 0], points[..., 1] = xs[None, :], ys[:, None]
+    band_logodds = np.full((ny, nx), np.nan, np.float32)
+    is_floor = np.zeros((ny, nx), bool)
+    slope = np.full((ny, nx), np.nan, np.float32)
+    for whole, part in ((floor_height, inner.floor_height), (state, inner.state),
+                        (points, inner.points), (band_logodds, inner.band_logodds),
+                        (is_floor, inner.is_floor), (slope, inner.slope)):
+        whole[rows, cols] = part
+    return Segmentation(origin=layers.origin, resolution=layers.resolution, robot=robot,
+                        floor_height=floor_height, is_floor=is_floor, planes=inner.planes,
+                        state=state, points=points, band_logodds=band_logodds,
+                        updated=layers.updated, slope=slope)
+
+
+def _reach(params: FloorConfig, resolution: float) -> int:
+    """How far (cells) any rule of the segmentation reaches from the cells that were
+    observed: the floor's height carried, an overhang spread, a drop-off spread or a gap
+    bridged, and a few cells more for the 3 x 3 and 5 x 5 neighbourhoods on the way."""
+    farthest = max(params.fill_radius, params.overhang_reach, params.drop_reach,
+                   params.max_gap, params.max_hole)
+    return math.ceil(farthest / resolution) + 3
+
+
+def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[slice, slice]:
+    """Rows and columns of the smallest box holding every cell with a hit or with heights
+    rays saw, and every place the robot stood, grown by `reach` cells (within the window;
+    empty when nothing was observed)."""
+    ny, nx = layers.shape
+    observed = (layers.nlev > 0) | (layers.seen != 0)
+    stood = np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2)
+    cells = np.floor((stood - np.asarray(layers.origin)) / layers.resolution).astype(np.int64)
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < nx) & (cells[:, 1] >= 0) & (cells[:, 1] < ny)
+    observed[cells[inside, 1], cells[inside, 0]] = True
+    rows, cols = np.flatnonzero(observed.any(axis=1)), np.flatnonzero(observed.any(axis=0))
+    if not len(rows):
+        return slice(0, 0), slice(0, 0)
+    reach += math.ceil(robot.radius / layers.resolution)  # the footprint round a place
+    return (slice(max(rows[0] - reach, 0), min(rows[-1] + reach + 1, ny)),
+            slice(max(cols[0] - reach, 0), min(cols[-1] + reach + 1, nx)))
+
+
+def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
+    """The cells (rows, cols) of `layers` as a window of their own."""
+    return CellLayers(
+        origin=(layers.origin[0] + cols.start * layers.resolution,
+                layers.origin[1] + rows.start * layers.resolution),
+        resolution=layers.resolution, z_min=layers.z_min, mask_dz=layers.mask_dz,
+        levels=layers.levels[rows, cols], counts=layers.counts[rows, cols],
+        nlev=layers.nlev[rows, cols], seen=layers.seen[rows, cols],
+        updated=layers.updated[rows, cols], stood=layers.stood)
+
+
+def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
+             fallback_floor: float | None) -> Segmentation:
+    """`segment` on the whole of `layers`."""
     rng = np.random.default_rng(params.seed)
     ny, nx = layers.shape
     res = layers.resolution

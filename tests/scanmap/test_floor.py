@@ -255,6 +255,50 @@ def test_a_2d_laser_map_needs_an_assumed_floor():
     assert (seg.state[(r > 0.5) & (r < 1.8)] == FREE).mean() > 0.9
 
 
+def assert_same_segmentation(got, want) -> None:
+    """The same cells, states and planes; heights and points to rounding (a window's cell
+    centres computed from another origin)."""
+    assert np.array_equal(got.state, want.state)
+    assert np.array_equal(got.is_floor, want.is_floor)
+    for name in ("floor_height", "points", "band_logodds", "slope"):
+        np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=0,
+                                   atol=1e-6, err_msg=name)
+    assert len(got.planes) == len(want.planes)
+    for a, b in zip(got.planes, want.planes, strict=True):
+        np.testing.assert_allclose(a.normal, b.normal, atol=1e-12)
+        assert abs(a.offset - b.offset) < 1e-12 and a.cells == b.cells
+
+
+def test_a_window_mostly_unobserved_segments_as_a_whole():
+    """A 16 m window round the 6 m furnished room: the part no rule reaches is left out
+    (a quarter of the window is segmented), the result is the whole window's."""
+    mapped = S.map_scene(S.furnished_room(), S.ROOM_POSES[:3],
+                         HeightGrid(GridConfig(extent=50.0)))
+    layers = mapped.grid.layers((-8.0, -8.0, 8.0, 8.0))
+    params, robot = FloorConfig(), RobotShape()
+    rows, cols = floor_module._observed_box(layers, robot,
+                                            floor_module._reach(params, layers.resolution))
+    assert (rows.stop - rows.start) * (cols.stop - cols.start) < 0.4 * layers.nlev.size
+    seg = segment(layers, robot, params)
+    assert_same_segmentation(seg, floor_module._segment(layers, robot, params, None))
+    assert (seg.state == FREE).sum() > 1000 and (seg.state == OBSTACLE).sum() > 300
+    assert np.isfinite(seg.floor_height).all()  # beyond the reach: the floor plane's height
+
+
+def test_a_2d_laser_window_mostly_unobserved_keeps_its_assumed_floor():
+    grid = HeightGrid(GridConfig(extent=50.0))
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    wall = np.column_stack([1.0 * np.cos(angles), 1.0 * np.sin(angles), np.full(360, 0.3)])
+    # off the cells' corners: a footprint whose rim passes through a cell's corner exactly
+    # is decided by the rounding of the cell centres, which differs between windows
+    grid.insert(wall + [0.013, -0.021, 0.0], np.array([0.013, -0.021, 0.3]), 0.0)
+    layers = grid.layers((-9.0, -9.0, 9.0, 9.0))
+    flat = FloorConfig(min_coverage=0.0, detect=False)
+    seg = segment(layers, params=flat, fallback_floor=0.0)
+    assert_same_segmentation(seg, floor_module._segment(layers, RobotShape(), flat, 0.0))
+    assert (seg.floor_height == 0.0).all() and (seg.state == OBSTACLE).sum() > 100
+
+
 @pytest.mark.parametrize("kwargs", [{"step_height": 0.0}, {"height": -1.0},
                                     {"radius": math.nan}, {"step_height": 1.2}])
 def test_robot_shape_rejects_nonsense(kwargs):

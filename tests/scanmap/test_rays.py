@@ -49,6 +49,24 @@ def test_scan_rays_with_one_pose_and_with_a_pose_per_frame():
             origins[i], transform_points(p, camera_centres(model, scan.heading[i:i + 1]))[0])
 
 
+def test_each_points_heading_turns_its_camera_centre():
+    """Points of one frame in a run, sorted, with headings that change within the frame
+    (and repeat across frames): every origin is its own heading's camera centre."""
+    model, scan = tilted_model(), random_scan(60, 3)
+    order = np.argsort(scan.frame_index, kind="stable")
+    heading = np.repeat([0.2, 0.2, 1.1, -2.0, 0.2, 3.0], 10)
+    scan = Scan(points=scan.points[order], colors=scan.colors, time=scan.time,
+                heading=heading, frame_index=scan.frame_index[order],
+                range_sigma=scan.range_sigma)
+    per_frame = np.stack([se2_to_pose(0.3 * f, 1.0, 0.2 * f) for f in range(3)])
+    _, origins = scan_rays(scan, model, per_frame)
+    for i in range(len(scan)):
+        centre = camera_centres(model, heading[i:i + 1])
+        np.testing.assert_allclose(
+            origins[i], transform_points(per_frame[scan.frame_index[i]], centre)[0],
+            atol=1e-12)
+
+
 @pytest.mark.parametrize("pose", [np.eye(3), np.full((4, 4), np.nan), np.stack([np.eye(4)] * 2)])
 def test_bad_poses_are_scan_errors(pose):
     with pytest.raises(ScanError):
