@@ -21,6 +21,13 @@ poses lie 0.3-0.6 m apart (the heading within 12 deg of the path), in ambient li
 0.3-0.9. A black-lined hole returns nothing, as black carpet does: it is told apart only
 by its size, so one a little wider than `max_hole` may be taken for carpet (the lit gaps
 around it widen the patch the rules measure).
+
+`people_room(seed)`: people pass while walls and furniture stay, in a walled room 7-10 m
+long and 2.8-4 m wide with three cabinets (0.4-0.9 m long, 0.4 m deep, 0.7 m high,
+turned by up to 17 deg) against its long walls, their faces at any offset to the cells;
+the robot creeps along the centre line over PEOPLE_SCANS scans while four people pass
+in lanes between it and the cabinets: two walk the room's length in 6-20 scans, two
+stand 5-20 scans and leave; each waits and ends behind the east wall, out of sight.
 """
 
 from __future__ import annotations
@@ -65,6 +72,7 @@ def _region(kind: str, x: float, y: float, rng: np.random.Generator) -> dict:
 MIXED = ("hole", "hole", "hole", "black-lined hole", "black carpet", "stairwell", "step down",
          "pit", "ramp", "glass", "box")
 HAZARD_STEP = 1.1  # m along x between the mixed rooms' hazards
+PEOPLE_SCANS = 45
 
 
 def _mixed_region(kind: str, centre: list[float], rng: np.random.Generator) -> dict:
@@ -161,3 +169,42 @@ def random_room(seed: int) -> Scene:
                       round(math.atan(slope) + rng.uniform(-0.05, 0.05), 4)])
     return _room(f"random room {seed}", f"random_room({seed})", 10.1, 5.1, 0.8, [], regions,
                  poses)
+
+
+def people_room(seed: int) -> Scene:
+    """The room with people of the module docstring drawn from `seed`."""
+    rng = np.random.default_rng(seed)
+    length, width = rng.uniform(7.0, 10.0), rng.uniform(2.8, 4.0)
+    half, east = 0.5 * width, length - 1.05
+    cabinets = [{"type": "box", "color": [120, 100, 80], "name": "cabinet",
+                 "center": [round(float(rng.uniform(0.5, east - 1.5)), 3),
+                            round((1 if k % 2 else -1) * (half - 0.25), 3), 0.35],
+                 "size": [round(float(rng.uniform(0.4, 0.9)), 3), 0.4, 0.7],
+                 "yaw": round(float(rng.uniform(-0.3, 0.3)), 3)} for k in range(3)]
+    hidden = east + 0.6  # behind the east wall
+    people = []
+    for k in range(4):
+        side = 1 if rng.random() < 0.5 else -1  # clear of the robot and the cabinets
+        lane = round(side * float(rng.uniform(0.5, half - 0.7)), 3)
+        if k % 2 == 0:  # walks the room's length
+            start = int(rng.integers(1, PEOPLE_SCANS - 8))
+            end = min(start + int(rng.integers(6, 21)), PEOPLE_SCANS - 1)
+            ends = [east - 0.5, -0.5] if rng.random() < 0.5 else [-0.5, east - 0.5]
+            track = [[start - 1, hidden, lane], [start, ends[0], lane], [end, ends[1], lane],
+                     [end + 1, hidden, lane]]
+        else:  # stands, then leaves
+            start = int(rng.integers(1, PEOPLE_SCANS // 2))
+            end = start + int(rng.integers(5, 21))
+            x = round(float(rng.uniform(0.5, east - 1.5)), 3)
+            track = [[start - 1, hidden, lane], [start, x, lane], [end, x, lane],
+                     [end + 1, hidden, lane]]
+        people.append({"radius": round(float(rng.uniform(0.15, 0.22)), 3),
+                       "height": round(float(rng.uniform(1.5, 1.85)), 3),
+                       "color": [90, 70, 160], "name": f"person {k}",
+                       "track": [[t, round(float(x), 3), y] for t, x, y in track]})
+    step = (length - 3.0) / PEOPLE_SCANS
+    poses = [[round(step * k, 3), 0.0, 0.0] for k in range(PEOPLE_SCANS)]
+    room = _room(f"people room {seed}", f"people_room({seed})", length, width, 0.8, cabinets,
+                 [], poses)
+    return Scene.from_dict(room.to_dict() | {"people": people}, source=f"people_room({seed})")
+

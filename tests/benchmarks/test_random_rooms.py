@@ -1,5 +1,5 @@
 """Random hazard rooms (`benchmarks.random_rooms`): scenes drawn afresh from a seed, and
-the hazards benchmark's `--random` measures on them."""
+the hazards benchmark's `--random`, `--mixed` and `--people` measures on them."""
 
 from __future__ import annotations
 
@@ -8,7 +8,14 @@ import json
 import numpy as np
 
 from benchmarks.bench_hazards import main
-from benchmarks.random_rooms import HAZARDS, MIXED, mixed_room, random_room
+from benchmarks.random_rooms import (
+    HAZARDS,
+    MIXED,
+    PEOPLE_SCANS,
+    mixed_room,
+    people_room,
+    random_room,
+)
 from scanmap_driver.sim import RASTER_DROP_OFF, Scene, truth_raster
 
 
@@ -72,3 +79,33 @@ def test_the_benchmark_measures_mixed_rooms(capsys):
     assert set(out) == {"mixed_room(1)", "worst"}
     assert out["worst"]["rooms"] == 1
     assert out["worst"]["drop_free"] == out["mixed_room(1)"]["drop_free"]
+
+
+def test_a_people_room_has_people_passing_clear_of_the_robot_and_out_of_sight_between():
+    assert people_room(2).to_dict() == people_room(2).to_dict()
+    assert people_room(2).to_dict()["people"] != people_room(3).to_dict()["people"]
+    for seed in range(1, 6):
+        room = people_room(seed)
+        cabinets = [box for box in room.objects if box.name == "cabinet"]
+        assert len(cabinets) == 3 and len(room.people) == 4
+        east = max(box.center[0] for box in room.objects if box.name != "cabinet")
+        shown = 0
+        for k, (x, y, _) in enumerate(room.scan_poses):
+            for person in room.people:
+                px, py = person.at_scan(k).center[:2]
+                assert px > east or np.hypot(px - x, py - y) > 0.25 + person.radius
+                shown += px < east
+        assert shown > 20  # people are in the room for a good part of the run
+        assert len(room.scan_poses) == PEOPLE_SCANS
+
+
+def test_the_benchmark_measures_rooms_with_people_and_their_sum(capsys):
+    assert main(["--people", "1", "--quick"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"people_room(1)", "sum"}
+    room, total = out["people_room(1)"], out["sum"]
+    assert total["rooms"] == 1 and total["ghost_cells"] == room["ghost_cells"]
+    assert total["left_cells"] > 0 and 0.9 < total["wall_recall_people"] <= 1.0
+    assert total["wall_cells_freed"] <= total["wall_cells_eroded"] \
+        <= total["wall_cells_eroded_strict"]
+
