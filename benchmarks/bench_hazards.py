@@ -354,11 +354,17 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
             "wall_recall_people": recall["people"], "wall_recall_empty": recall["empty"]}
 
 
-def people_rooms_run(count: int, scans: int | None = None) -> dict[str, float]:
+def people_rooms(count: int, scans: int | None = None) -> dict[str, dict[str, float]]:
     """`people_run` on `count` rooms with people (`random_rooms.people_room`, seeds 1 to
-    count): each count summed over them, and the rooms where a static cell eroded."""
-    return people_summary([people_run(scans, scene=people_room(seed))
-                           for seed in range(1, count + 1)])
+    count), by room."""
+    return {f"people_room({seed})": people_run(scans, scene=people_room(seed))
+            for seed in range(1, count + 1)}
+
+
+def people_rooms_run(count: int, scans: int | None = None) -> dict[str, float]:
+    """`people_rooms`: each count summed over them, and the rooms where a static cell
+    eroded."""
+    return people_summary(list(people_rooms(count, scans).values()))
 
 
 def people_summary(runs: list[dict[str, float]]) -> dict[str, float]:
@@ -495,9 +501,7 @@ def main(argv: list[str] | None = None) -> int:
         if rooms:
             print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))},
                              indent=1))
-    rooms = {f"people_room({seed})": people_run(24 if args.quick else None,
-                                                scene=people_room(seed))
-             for seed in range(1, (args.people or 0) + 1)}
+    rooms = people_rooms(args.people or 0, 24 if args.quick else None)
     if rooms:
         print(json.dumps(rooms | {"sum": people_summary(list(rooms.values()))}, indent=1))
     if not (args.scene or args.random or args.mixed or args.people):

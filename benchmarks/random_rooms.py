@@ -135,9 +135,10 @@ def mixed_room(seed: int) -> Scene:
 
 
 def _room(name: str, source: str, length: float, width: float, ambient: float,
-          objects: list[dict], regions: list[dict], poses: list[list[float]]) -> Scene:
+          objects: list[dict], regions: list[dict], poses: list[list[float]],
+          people: list[dict] | None = None) -> Scene:
     """A walled room from x = -1.05 to `length` - 1.05, `width` wide about y = 0, holding
-    `objects` and `regions`, scanned from `poses`."""
+    `objects`, `regions` and `people`, scanned from `poses`."""
     wall = {"type": "box", "color": [200, 196, 190]}
     east, half = length - 1.05, 0.5 * width
     walls = [wall | {"center": [round(0.5 * (east - 1.05), 3), round(y, 3), 0.65],
@@ -148,7 +149,8 @@ def _room(name: str, source: str, length: float, width: float, ambient: float,
         "format": "scanmap.scene/1", "name": name,
         "description": f"{source}: {__doc__.splitlines()[0]}",
         "floor": {"color": [150, 140, 125]}, "ambient": ambient, "texture": 0.25,
-        "objects": walls + objects, "floor_regions": regions, "scan_poses": poses},
+        "objects": walls + objects, "floor_regions": regions, "people": people or [],
+        "scan_poses": poses},
         source=source)
 
 
@@ -204,7 +206,6 @@ def people_room(seed: int) -> Scene:
                        "track": [[t, round(float(x), 3), y] for t, x, y in track]})
     step = (length - 3.0) / PEOPLE_SCANS
     poses = [[round(step * k, 3), 0.0, 0.0] for k in range(PEOPLE_SCANS)]
-    room = _room(f"people room {seed}", f"people_room({seed})", length, width, 0.8, cabinets,
-                 [], poses)
-    return Scene.from_dict(room.to_dict() | {"people": people}, source=f"people_room({seed})")
+    return _room(f"people room {seed}", f"people_room({seed})", length, width, 0.8, cabinets,
+                 [], poses, people)
 

@@ -674,13 +674,12 @@ def frame_rays(points: np.ndarray, headings: np.ndarray, frames: np.ndarray,
     """Points (N, 3) in base_link and their camera centres (the camera at `camera` in the
     head mount, turned by each heading about z, then by the 4x4 `head` pose) carried to
     map by the pose of each point's frame (poses (F, 4, 4)). A frame's points share its
-    heading: the camera centre is turned again only when the heading or frame changes."""
-    last_heading, last_frame = np.nan, -1
-    ox = oy = oz = 0.0
+    heading: the camera centre is turned again only when the heading changes."""
+    last_heading = np.nan
+    bx = by = bz = 0.0
     for i in range(points.shape[0]):
-        f = frames[i]
-        if headings[i] != last_heading or f != last_frame:
-            last_heading, last_frame = headings[i], f
+        if headings[i] != last_heading:
+            last_heading = headings[i]
             c, s = np.cos(headings[i]), np.sin(headings[i])
             mx = c * camera[0] - s * camera[1]
             my = s * camera[0] + c * camera[1]
@@ -688,11 +687,10 @@ def frame_rays(points: np.ndarray, headings: np.ndarray, frames: np.ndarray,
             bx = head[0, 0] * mx + head[0, 1] * my + head[0, 2] * mz + head[0, 3]
             by = head[1, 0] * mx + head[1, 1] * my + head[1, 2] * mz + head[1, 3]
             bz = head[2, 0] * mx + head[2, 1] * my + head[2, 2] * mz + head[2, 3]
-            ox = poses[f, 0, 0] * bx + poses[f, 0, 1] * by + poses[f, 0, 2] * bz + poses[f, 0, 3]
-            oy = poses[f, 1, 0] * bx + poses[f, 1, 1] * by + poses[f, 1, 2] * bz + poses[f, 1, 3]
-            oz = poses[f, 2, 0] * bx + poses[f, 2, 1] * by + poses[f, 2, 2] * bz + poses[f, 2, 3]
-        out_origins[i, 0], out_origins[i, 1], out_origins[i, 2] = ox, oy, oz
+        f = frames[i]
         px, py, pz = np.float64(points[i, 0]), np.float64(points[i, 1]), np.float64(points[i, 2])
         for r in range(3):
             out_points[i, r] = poses[f, r, 0] * px + poses[f, r, 1] * py \
                 + poses[f, r, 2] * pz + poses[f, r, 3]
+            out_origins[i, r] = poses[f, r, 0] * bx + poses[f, r, 1] * by \
+                + poses[f, r, 2] * bz + poses[f, r, 3]

@@ -373,11 +373,7 @@ def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[sl
     rays saw, and every place the robot stood, grown by `reach` cells (within the window;
     empty when nothing was observed)."""
     ny, nx = layers.shape
-    observed = (layers.nlev > 0) | (layers.seen != 0)
-    stood = np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2)
-    cells = np.floor((stood - np.asarray(layers.origin)) / layers.resolution).astype(np.int64)
-    inside = (cells[:, 0] >= 0) & (cells[:, 0] < nx) & (cells[:, 1] >= 0) & (cells[:, 1] < ny)
-    observed[cells[inside, 1], cells[inside, 0]] = True
+    observed = (layers.nlev > 0) | (layers.seen != 0) | _stood_cells(layers)
     rows, cols = np.flatnonzero(observed.any(axis=1)), np.flatnonzero(observed.any(axis=0))
     if not len(rows):
         return slice(0, 0), slice(0, 0)
@@ -573,16 +569,22 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
 def _ranges(layers: CellLayers) -> np.ndarray:
     """Distance (cells) from each cell to the nearest place in the window the robot stood
     (all 0 where it stood nowhere in it: no direction to tell)."""
+    cells = _stood_cells(layers)
+    if not cells.any():
+        return np.zeros(layers.shape, np.float32)
+    return distance_transform(cells)[0]
+
+
+def _stood_cells(layers: CellLayers) -> np.ndarray:
+    """The cells of the window that hold a place the robot stood (`layers.stood`)."""
     ny, nx = layers.shape
     stood = np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2)
     cols = np.floor((stood[:, 0] - layers.origin[0]) / layers.resolution).astype(np.int64)
     rows = np.floor((stood[:, 1] - layers.origin[1]) / layers.resolution).astype(np.int64)
     inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
-    if not inside.any():
-        return np.zeros((ny, nx), np.float32)
     cells = np.zeros((ny, nx), bool)
     cells[rows[inside], cols[inside]] = True
-    return distance_transform(cells)[0]
+    return cells
 
 
 def _below_model(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
