@@ -152,6 +152,17 @@ def _request_tile(tile_index, ty, tx, out, count) -> int:
     return count + 1
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _corner_tiles_listed(tile_index, gx0, gy0, gx1, gy1) -> bool:
+    """Whether a ray from tile coordinates (gx0, gy0) to (gx1, gy1) spans at most 2 x 2
+    tiles, all with a slot or already listed: it crosses no other tile (a segment stays
+    within its bounding box), so it needs no walk."""
+    xa, xb = int(np.floor(min(gx0, gx1))), int(np.floor(max(gx0, gx1)))
+    ya, yb = int(np.floor(min(gy0, gy1))), int(np.floor(max(gy0, gy1)))
+    return xb - xa <= 1 and yb - ya <= 1 and tile_index[ya, xa] != -1 \
+        and tile_index[ya, xb] != -1 and tile_index[yb, xa] != -1 and tile_index[yb, xb] != -1
+
+
 @njit(cache=True, nogil=True)
 def collect_missing_tiles(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                           tile_index: np.ndarray, res: float, tile_cells: int, x0: float,
@@ -168,6 +179,8 @@ def collect_missing_tiles(points: np.ndarray, origins: np.ndarray, cls: np.ndarr
             continue
         gx0, gy0 = (origins[i, 0] - x0) / res / tile_cells, (origins[i, 1] - y0) / res / tile_cells
         gx1, gy1 = (points[i, 0] - x0) / res / tile_cells, (points[i, 1] - y0) / res / tile_cells
+        if _corner_tiles_listed(tile_index, gx0, gy0, gx1, gy1):
+            continue  # the common case once the map is built
         count = _request_tile(tile_index, int(np.floor(gy1)), int(np.floor(gx1)), out, count)
         ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(gx0, gy0, gx1, gy1)
         for _ in range(steps + 1):

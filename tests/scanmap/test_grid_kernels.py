@@ -98,6 +98,35 @@ def test_ray_traversal_marks_exactly_the_crossed_cells_and_heights(seed):
     assert got == {cell: bits for cell, bits in expected.items() if bits}
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_collect_missing_tiles_lists_every_tile_a_ray_crosses(seed):
+    """Each tile (8 cells of 5 cm) whose cells a ray crosses (exact clipping, as the
+    insertion walks them) either has a slot or is listed, and nothing outside the ray's
+    bounding box is: also where the walk is skipped, for rays within 2 x 2 tiles that
+    all have slots. Short rays among a few missing tiles, one at a time: most take that
+    shortcut."""
+    res, cells = 0.05, 8
+    rng = np.random.default_rng(seed)
+    slots = np.arange(64, dtype=np.int32).reshape(8, 8)  # slots but for a few
+    slots[rng.integers(0, 8, 6), rng.integers(0, 8, 6)] = -1
+    shift = [CONFIG.corner, CONFIG.corner, 0.0]  # reference_ray_cells counts from there
+    out = np.empty((64, 2), np.int64)
+    for _ in range(300):
+        point = np.array([*rng.uniform(0.5, 2.7, 2), 0.0])
+        origin = point + [*rng.uniform(-0.45, 0.45, 2), 1.0]
+        tile_index = slots.copy()
+        count = gk.collect_missing_tiles(point[None], origin[None], np.zeros(1, np.uint8),
+                                         tile_index, res, cells, 0.0, 0.0, out)
+        listed = {(int(ty), int(tx)) for ty, tx in out[:count]}
+        crossed = {(iy // cells, ix // cells) for ix, iy in
+                   reference_ray_cells(origin + shift, point + shift, res, -1.0, 0.5)}
+        lo = np.floor(np.minimum(point, origin)[:2] / (res * cells)).astype(int)
+        hi = np.floor(np.maximum(point, origin)[:2] / (res * cells)).astype(int)
+        box = {(ty, tx) for tx in range(lo[0], hi[0] + 1) for ty in range(lo[1], hi[1] + 1)}
+        assert {t for t in crossed if slots[t] == -1} <= listed <= box
+        assert all(slots[t] == -1 and tile_index[t] == -2 for t in listed)
+
+
 def single_linkage(z: np.ndarray, gap: float) -> list[tuple[float, float]]:
     """Clusters of heights where neighbours (sorted) are within gap."""
     z = np.sort(z)
