@@ -326,9 +326,10 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
                 once = np.zeros_like(walls)
                 covered = person_cells(scene, step.seg, count) if label == "people" else None
                 crossed_since = np.zeros(walls.shape, np.uint64)  # since a person was there
+                solid = truth_classes(step.seg, grazes) == 0  # not a face's sliver
             if label == "people":
                 strict += int((once & walls & ~obstacle).sum())
-                fair = once & walls & (truth_classes(step.seg, grazes) == 0)
+                fair = once & walls & solid
                 eroded += int((fair & ~obstacle).sum())
                 freed += int((fair & (step.seg.state == FREE)).sum())
                 crossed_since |= band_crossed(*scan_rays(step.ideal.scan, reference_scanner(),

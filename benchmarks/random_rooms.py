@@ -208,4 +208,3 @@ def people_room(seed: int) -> Scene:
     poses = [[round(step * k, 3), 0.0, 0.0] for k in range(PEOPLE_SCANS)]
     return _room(f"people room {seed}", f"people_room({seed})", length, width, 0.8, cabinets,
                  [], poses, people)
-
