@@ -341,21 +341,41 @@ def _inner_corner(known: np.ndarray, hit: np.ndarray, y: int, x: int, dy: int, d
                   and _off_floor(known, hit, y - dy, x, unlit))
 
 
+NO_SAMPLES = np.zeros((0, 0, 2), np.float32)  # `interpolated`: no sample positions known
+
+
+@njit(cache=True, nogil=True)
+def _along(samples: np.ndarray, y: int, x: int, ux: float, uy: float, worst: float) -> float:
+    """Where the sample of cell (y, x) lies along the unit direction (ux, uy), in cells
+    from the cell's centre (`samples` (ny, nx, 2): x and y offsets in cells, NaN where not
+    known), or `worst` where not known: anywhere in the cell, its edge."""
+    if samples.shape[0] == 0:
+        return worst
+    sx, sy = samples[y, x, 0], samples[y, x, 1]
+    if not (math.isfinite(sx) and math.isfinite(sy)):
+        return worst
+    return sx * ux + sy * uy
+
+
 @njit(cache=True, nogil=True)
 def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: int,
-                 step: float, unlit_corners: bool = False) -> np.ndarray:
+                 step: float, unlit_corners: bool = False,
+                 samples: np.ndarray = NO_SAMPLES) -> np.ndarray:
     """`known` and the cells without a hit lying between two known cells along a row, a
-    column or a diagonal, at most `size` + 1 cells apart (metric: a diagonal step is
-    sqrt(2) cells), heights within `step`, no other cell with a hit between them
-    (`interpolated_reference` is the plain version). Not along a diagonal through the
-    inner corner of hits off the floor (both of the cell's row and column neighbours on
-    one side of the diagonal), nor with `unlit_corners` of any cells not known floor,
-    hit or not: the floor's edge turns there (a hole's or a wall's corner; a hole's
-    inside often holds no hit at all), and the diagonal between two rim cells runs
-    outside the floor."""
+    column or a diagonal whose samples lie at most `size` + 2 cells apart (metric: a
+    diagonal step is sqrt(2) cells), heights within `step`, no other cell with a hit
+    between them (`interpolated_reference` is the plain version). A known cell's sample
+    is where `samples` (ny, nx, 2: its x and y offset from the cell's centre, in cells)
+    puts it, else its edge away from the gap: without samples, known cells at most
+    `size` + 1 cells apart. Not along a diagonal through the inner corner of hits off the
+    floor (both of the cell's row and column neighbours on one side of the diagonal), nor
+    with `unlit_corners` of any cells not known floor, hit or not: the floor's edge turns
+    there (a hole's or a wall's corner; a hole's inside often holds no hit at all), and the
+    diagonal between two rim cells runs outside the floor."""
     ny, nx = known.shape
     out = known.copy()
-    reach = size + 1
+    widest = size + 2.0  # the opening bridged, sample to sample
+    far = widest + (1.0 if samples.shape[0] else -1.0)  # cell to cell
     for y in range(ny):
         for x in range(nx):
             if known[y, x] or hit[y, x]:
@@ -367,9 +387,9 @@ def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: 
                 length = math.sqrt(dy * dy + dx * dx)
                 ka, kb = 0, 0
                 ha, hb = np.nan, np.nan
-                for k in range(1, reach + 1):  # forward: the first cell with a hit
+                for k in range(1, int(far) + 1):  # forward: the first cell with a hit
                     yy, xx = y + k * dy, x + k * dx
-                    if k * length > reach or not (0 <= yy < ny and 0 <= xx < nx):
+                    if k * length > far or not (0 <= yy < ny and 0 <= xx < nx):
                         break
                     if known[yy, xx] or hit[yy, xx]:
                         if known[yy, xx]:
@@ -377,30 +397,40 @@ def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: 
                         break
                 if ka == 0:
                     continue
-                for k in range(1, reach + 1):  # backward
+                for k in range(1, int(far) + 1):  # backward
                     yy, xx = y - k * dy, x - k * dx
-                    if (ka + k) * length > reach or not (0 <= yy < ny and 0 <= xx < nx):
+                    if (ka + k) * length > far or not (0 <= yy < ny and 0 <= xx < nx):
                         break
                     if known[yy, xx] or hit[yy, xx]:
                         if known[yy, xx]:
                             kb, hb = k, heights[yy, xx]
                         break
-                if kb > 0 and abs(ha - hb) <= step:  # False for NaN
+                if kb == 0 or not abs(ha - hb) <= step:  # NaN: not within
+                    continue
+                ux, uy = dx / length, dy / length
+                opening = (ka + kb) * length \
+                    + _along(samples, y + ka * dy, x + ka * dx, ux, uy, 0.5) \
+                    - _along(samples, y - kb * dy, x - kb * dx, ux, uy, -0.5)
+                if opening <= widest:
                     out[y, x] = True
                     break
     return out
 
 
 def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarray,
-                           size: int, step: float, unlit_corners: bool = False) -> np.ndarray:
+                           size: int, step: float, unlit_corners: bool = False,
+                           samples: np.ndarray = NO_SAMPLES) -> np.ndarray:
     """`interpolated` in numpy (shifted copies of the grids), for tests."""
     ny, nx = known.shape
     informative = known | hit
     heights = np.where(known, heights, np.nan)
+    if not samples.shape[0]:
+        samples = np.full((ny, nx, 2), np.nan, np.float32)
     out = known.copy()
-    pad = size + 1
+    pad = size + 4
     p_inf, p_known = np.pad(informative, pad), np.pad(known, pad)
     p_h = np.pad(heights, pad, constant_values=np.nan)
+    p_s = np.pad(samples, ((pad, pad), (pad, pad), (0, 0)), constant_values=np.nan)
     p_off = np.pad(~known & (hit | unlit_corners), pad)  # off the floor, inside the grid
 
     def off_floor(oy: int, ox: int) -> np.ndarray:
@@ -410,25 +440,29 @@ def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarr
         corner = np.zeros((ny, nx), bool)
         if dy and dx:  # the inner corner of cells off the floor on one side of the diagonal
             corner = off_floor(dy, 0) & off_floor(0, -dx) | off_floor(0, dx) & off_floor(-dy, 0)
+        length = np.hypot(dy, dx)
         ends = []
         for sign in (1, -1):
             found = np.zeros((ny, nx), bool)
             ok = np.zeros((ny, nx), bool)
             distance = np.zeros((ny, nx), np.int64)
             height = np.full((ny, nx), np.nan, heights.dtype)
-            for k in range(1, size + 2):
+            along = np.full((ny, nx), 0.5 * sign)  # the cell's edge away from the gap
+            for k in range(1, size + 4):
                 y0, x0 = pad + sign * k * dy, pad + sign * k * dx
                 window = (slice(y0, y0 + ny), slice(x0, x0 + nx))
                 new = ~found & p_inf[window]
                 ok |= new & p_known[window]
                 distance[new] = k
                 height[new] = p_h[window][new]
+                offset = (p_s[window][..., 0] * dx + p_s[window][..., 1] * dy) / length
+                along[new & np.isfinite(offset)] = offset[new & np.isfinite(offset)]
                 found |= new
-            ends.append((ok, distance, height))
-        (ok_a, d_a, h_a), (ok_b, d_b, h_b) = ends
-        span = (d_a + d_b) * np.hypot(dy, dx)
+            ends.append((ok, distance, height, along))
+        (ok_a, d_a, h_a, s_a), (ok_b, d_b, h_b, s_b) = ends
+        opening = (d_a + d_b) * length + s_a - s_b
         with np.errstate(invalid="ignore"):
-            out |= ok_a & ok_b & (span <= size + 1) & (np.abs(h_a - h_b) <= step) & ~hit \
+            out |= ok_a & ok_b & (opening <= size + 2) & (np.abs(h_a - h_b) <= step) & ~hit \
                 & ~corner
     return out
 

@@ -164,10 +164,11 @@ class FloorConfig:
     (step_height + 2 mask_dz) / camera height times the range past the rim, 0.1 for a
     camera 1 m up. max_hole: the largest patch without hits (m, each side of its
     bounding box) inside consistent floor that is taken as floor. max_gap: the widest
-    opening (m) between two floor samples along a row, column or diagonal taken as floor
-    (the cells at its ends may be lit on part of their width only, so at most max_gap
-    less two cells without a hit are bridged), away from any drop-off, surface below the
-    floor model, level reaching more than a step below it or level reaching more than
+    opening (m) between two floor samples along a row, column or diagonal taken as floor,
+    measured between where the floor hits of the cells at its ends lie (their mean: the
+    hits nearest the opening lie no farther out), from the far edge of an end cell without
+    floor hits (it may be lit on part of its width only), away from any drop-off, surface
+    below the floor model, level reaching more than a step below it or level reaching more than
     plane_tolerance below the floor beside it (`_dips`) (max_gap plus two cells, as
     wide as a hole without unobserved space wider than max_gap in it) and from any such
     wider unobserved space (max_gap): this scanner's lines lie r * 2 pi / 53 apart on the
@@ -499,7 +500,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # The cells at a span's ends may be lit on their outer parts only, so the opening
         # can be two cells wider than the unobserved span: bridge at most gap - 2 cells
         lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
-                                robot.step_height, unlit_corners=True) & ~seen_floor & ~foot
+                                robot.step_height, True, _floor_samples(layers, is_floor)
+                                ) & ~seen_floor & ~foot
         if lines.any():  # not near a sign of a hole, nor within max_gap of a wider gap
             # through cells without a hit (not of the space behind a wall). A hole too
             # narrow to hold a `wide` cell (under gap + 2 cells) shows at most its far
@@ -619,6 +621,15 @@ def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     gaps = nk.floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
                          floor_height, dips, step)
     return gaps[labels]
+
+
+def _floor_samples(layers: CellLayers, is_floor: np.ndarray) -> np.ndarray:
+    """(ny, nx, 2) where each floor cell's floor hits lie (the mean of its lowest level's:
+    x and y offsets from the cell's centre, in cells), NaN off the floor: the ends of an
+    opening between the laser's lines, to measure it to the hits rather than to the
+    cells' edges (the hits nearest the opening lie no farther out than their mean)."""
+    lowest = layers.levels[:, :, 0, gk.MX:gk.MY + 1] / np.float32(layers.resolution)
+    return np.where((is_floor & (layers.nlev > 0))[:, :, None], lowest, np.float32(np.nan))
 
 
 def _dips(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,

@@ -325,10 +325,50 @@ def test_interpolation_matches_its_numpy_reference(seed):
     hit = known | (rng.random((30, 40)) < 0.1)
     heights = rng.normal(0.0, 0.04, (30, 40)).astype(np.float32)
     heights[rng.random((30, 40)) < 0.05] = np.nan
+    samples = rng.uniform(-0.5, 0.5, (30, 40, 2)).astype(np.float32)
+    samples[rng.random((30, 40)) < 0.2] = np.nan
     for size in (1, 2, 4):
         for unlit in (False, True):
             assert (nk.interpolated(known, hit, heights, size, STEP, unlit)
                     == nk.interpolated_reference(known, hit, heights, size, STEP, unlit)).all()
+            assert (nk.interpolated(known, hit, heights, size, STEP, unlit, samples)
+                    == nk.interpolated_reference(known, hit, heights, size, STEP, unlit,
+                                                 samples)).all()
+
+
+@pytest.mark.parametrize(("apart", "a", "b", "bridged"), [
+    (6, 0.4, -0.4, True),     # samples 0.4 cells in from each end: 5.2 cells open
+    (6, -0.4, 0.4, False),    # 0.4 cells out: 6.8
+    (6, None, None, False),   # unknown: the cells' outer edges, 7
+    (6, 0.4, None, False),    # one known: 6.1
+    (5, None, None, True),    # unknown, a cell nearer: 6, as without samples
+    (7, 0.5, -0.5, True),     # the samples on the cells' inner edges: 6
+    (7, 0.45, -0.45, False),  # 6.1
+])
+def test_an_opening_is_measured_between_the_floor_samples(apart, a, b, bridged):
+    # Two floor cells `apart` cells apart along a row, bridged (size 4) when their samples
+    # lie at most 6 cells apart; offsets along the row, a toward b when positive
+    known = np.zeros((5, 12), bool)
+    known[2, 1] = known[2, 1 + apart] = True
+    samples = np.full((5, 12, 2), np.nan, np.float32)
+    if a is not None:
+        samples[2, 1] = (a, 0.0)
+    if b is not None:
+        samples[2, 1 + apart] = (b, 0.0)
+    for grid in (known, known.T):  # along a row, then a column (offsets swapped)
+        cells = np.ascontiguousarray(
+            samples if grid is known else samples.transpose(1, 0, 2)[:, :, ::-1])
+        heights = np.zeros(grid.shape, np.float32)
+        out = nk.interpolated(grid, grid, heights, 4, STEP, False, cells)
+        gap = out[2, 2:1 + apart] if grid is known else out[2:1 + apart, 2]
+        assert len(gap) == apart - 1
+        assert gap.all() == bridged and gap.any() == bridged
+        assert out.sum() == 2 + bridged * (apart - 1)
+        assert (out == nk.interpolated_reference(grid, grid, heights, 4, STEP, False,
+                                                 cells)).all()
+    heights = np.zeros(known.shape, np.float32)
+    assert nk.interpolated(known, known, heights, 4, STEP)[2, 2:1 + apart].all() \
+        == (apart <= 5)  # without samples, to the cells' edges
 
 
 @pytest.mark.parametrize("wall", [False, True])
@@ -359,3 +399,30 @@ def test_a_small_patch_without_returns_is_a_hole_beside_a_surface_below_the_floo
     drop = ndimage.binary_dilation(dark) & ~dark  # beside a drop-off: the drop's own rule
     assert not floor_module._sunk(dark, layers, is_floor, lowest, drop, 6, 0.03).any()
     assert not floor_module._sunk(dark, layers, is_floor, lowest, none, 1, 0.03).any()
+
+
+@pytest.mark.parametrize(("spacing", "bridged"), [(0.28, True), (0.32, False)])
+def test_the_gap_between_two_laser_lines_is_floor_when_their_hits_lie_max_gap_apart(
+        spacing, bridged):
+    # Floor lines along x 0.28 m apart hit to hit (their cells 5 or 6 apart): at most
+    # max_gap (0.3 m) open, the cells between them are floor, though the cells' edges lie
+    # up to 0.35 m apart; 0.32 m apart, they are not. Rays to a wall behind pass over all.
+    assert FloorConfig().max_gap == 0.3
+    grid = HeightGrid(GridConfig(extent=20.0))
+    x = np.arange(1.0, 2.0, 0.01)
+    ys = 0.03 + spacing * np.arange(5)
+    floor = np.column_stack([np.tile(x, 5), np.repeat(ys, len(x)), np.zeros(5 * len(x))])
+    wy, wz = np.meshgrid(np.arange(-1.0, 2.0, 0.01), np.arange(0.1, 1.2, 0.02))
+    wall = np.column_stack([np.full(wy.size, 2.6), wy.ravel(), wz.ravel()])
+    grid.insert(np.vstack([floor, wall]), np.array([0.0, ys.mean(), 1.0]), 1.0)
+    seg = segment(grid.layers((-0.5, -1.0, 3.0, 2.0)))
+    x_c = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution
+    y_c = seg.origin[1] + (np.arange(seg.shape[0]) + 0.5) * seg.resolution
+    lit = np.floor((ys - seg.origin[1]) / seg.resolution).astype(int)  # the lines' rows
+    assert set(np.diff(lit)) == ({5, 6} if bridged else {6, 7})
+    middle = (x_c > 1.35) & (x_c < 1.65)  # away from the lines' ends
+    between = (y_c > ys[0]) & (y_c < ys[-1])
+    between[lit] = False
+    state = seg.state[np.ix_(between, middle)]
+    assert (state == floor_module.FREE).all() == bridged
+    assert (state == floor_module.UNKNOWN).all() == (not bridged)
