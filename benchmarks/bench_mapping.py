@@ -30,12 +30,13 @@ from scanmap_driver.sim.simulate import simulate_recording
 RECORDING = Path(__file__).resolve().parents[1] / "data" / "corridor_recording"
 
 
-def _recording(quick: bool, scratch: Path) -> Path:
-    if not quick and (RECORDING / INDEX_NAME).is_file():
+def corridor_recording(scratch: Path, scans: int = 20) -> Path:
+    """The examples' corridor recording (./data/corridor_recording) when it is there and
+    `scans` is its 20, else `scans` scans of the corridor simulated into `scratch`."""
+    if scans == 20 and (RECORDING / INDEX_NAME).is_file():
         return RECORDING
     out = scratch / "corridor"
-    simulate_recording(builtin_scene("corridor"), out, reference_scanner(),
-                       scans=2 if quick else 20)
+    simulate_recording(builtin_scene("corridor"), out, reference_scanner(), scans=scans)
     return out
 
 
@@ -80,7 +81,7 @@ def run(quick: bool = False) -> list[dict]:
     """Rows: the pipeline with 1 and 2 threads, its stages, the online mapper."""
     with tempfile.TemporaryDirectory() as folder:
         scratch = Path(folder)
-        recording = _recording(quick, scratch)
+        recording = corridor_recording(scratch, 2 if quick else 20)
         return _pipeline_rows(recording, scratch) + [_online_row(recording)]
 
 

@@ -14,11 +14,14 @@ from benchmarks.bench_controller import (
     SWEEP_STEP,
     corridor_drive,
     floor_annulus,
+    recording_drive,
     swept_cells,
     unseeable,
 )
+from scanmap_driver.scanner_model import reference_scanner
 from scanmap_driver.sim.ideal import ideal_scans
 from scanmap_driver.sim.scene import builtin_scene
+from scanmap_driver.sim.simulate import simulate_recording
 
 RES = 0.05
 
@@ -77,3 +80,15 @@ def test_the_map_never_knows_a_path_no_scan_could_have_seen():
     assert set(drive["unseeable_ahead_scans"]) <= set(drive["unknown_ahead_scans"])
     assert drive["unknown_ahead_share"] >= drive["unseeable_ahead_share"] > 0
     assert all(0.0 <= t <= 1.0 for t in drive["travel_m"])
+
+
+def test_on_a_rendered_recording_too_the_map_never_knows_a_path_no_scan_could_have_seen(
+        tmp_path):
+    recording = tmp_path / "corridor"
+    simulate_recording(builtin_scene("corridor"), recording, reference_scanner(), scans=3)
+    drive = recording_drive(recording)
+    assert drive["scans"] == 3
+    near, far = drive["floor_annulus_m"]
+    assert 1.4 < near < far <= 4.0  # camera 1 m up, tilted down; the range limit
+    assert drive["unseeable_ahead_scans"][:1] == [0]
+    assert set(drive["unseeable_ahead_scans"]) <= set(drive["unknown_ahead_scans"])
