@@ -359,15 +359,15 @@ def _along(samples: np.ndarray, y: int, x: int, ux: float, uy: float, worst: flo
 
 @njit(cache=True, nogil=True)
 def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: int,
-                 step: float, unlit_corners: bool = False,
-                 samples: np.ndarray = NO_SAMPLES) -> np.ndarray:
+                 step: float, unlit_corners: bool, samples: np.ndarray) -> np.ndarray:
     """`known` and the cells without a hit lying between two known cells along a row, a
     column or a diagonal whose samples lie at most `size` + 2 cells apart (metric: a
     diagonal step is sqrt(2) cells), heights within `step`, no other cell with a hit
     between them (`interpolated_reference` is the plain version). A known cell's sample
     is where `samples` (ny, nx, 2: its x and y offset from the cell's centre, in cells)
-    puts it, else its edge away from the gap: without samples, known cells at most
-    `size` + 1 cells apart. Not along a diagonal through the inner corner of hits off the
+    puts it, else its edge away from the gap: without samples (NO_SAMPLES), known cells at
+    most `size` + 1 cells apart. No argument has a default: Numba's cache would miss an
+    omitted array on every run. Not along a diagonal through the inner corner of hits off the
     floor (both of the cell's row and column neighbours on one side of the diagonal), nor
     with `unlit_corners` of any cells not known floor, hit or not: the floor's edge turns
     there (a hole's or a wall's corner; a hole's inside often holds no hit at all), and the

@@ -452,7 +452,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
             & (layers.nlev == 0)
         shadow &= ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
                                    floor_height, round(params.max_hole / res),
-                                   robot.step_height)  # nor between floor samples
+                                   robot.step_height, False, nk.NO_SAMPLES)
         # across the scanner's view, no farther from where the robot stood than the cells
         # that show it (and a cell: beyond a hole's far wall the floor is lit, its unlit
         # cells are gaps between the laser's lines), nearer only across the rim's shadow
@@ -464,7 +464,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # and from the shadow up to the rim (where the drop-off shows itself, it is there)
         rim = (layers.nlev == 0) & ~nk.interpolated(
             is_floor | stood | holes, (layers.nlev > 0) | drop, floor_height, 2,
-            robot.step_height)
+            robot.step_height, False, nk.NO_SAMPLES)
         drop |= morphology.dilate_in_range(spread & ~seeds, rim, ranges, near, ranges, 1)
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
@@ -487,7 +487,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # passed to `interpolated` as a hit, it is skipped (the result is the same)
     apart = distance_transform(known_floor | informative)[0]
     seen_floor = nk.interpolated(known_floor, informative | (apart > 1.5), floor_height, 2,
-                                 robot.step_height, unlit_corners=True)
+                                 robot.step_height, True, nk.NO_SAMPLES)
     drop |= _sunk(bare & ~holes & ~is_floor & ~stood & ~assumed, layers, is_floor, lowest,
                   drop, round(params.max_hole / res), params.plane_tolerance)
     gap = round(params.max_gap / res)

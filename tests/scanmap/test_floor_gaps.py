@@ -223,7 +223,7 @@ def interpolated(known: np.ndarray, hit: np.ndarray | None = None,
                  heights: np.ndarray | None = None, unlit_corners: bool = False) -> np.ndarray:
     hit = known.copy() if hit is None else hit
     heights = np.zeros(known.shape, np.float32) if heights is None else heights
-    out = nk.interpolated(known, hit, heights, 2, STEP, unlit_corners)
+    out = nk.interpolated(known, hit, heights, 2, STEP, unlit_corners, nk.NO_SAMPLES)
     assert (out == nk.interpolated_reference(known, hit, heights, 2, STEP, unlit_corners)).all()
     return out
 
@@ -329,7 +329,7 @@ def test_interpolation_matches_its_numpy_reference(seed):
     samples[rng.random((30, 40)) < 0.2] = np.nan
     for size in (1, 2, 4):
         for unlit in (False, True):
-            assert (nk.interpolated(known, hit, heights, size, STEP, unlit)
+            assert (nk.interpolated(known, hit, heights, size, STEP, unlit, nk.NO_SAMPLES)
                     == nk.interpolated_reference(known, hit, heights, size, STEP, unlit)).all()
             assert (nk.interpolated(known, hit, heights, size, STEP, unlit, samples)
                     == nk.interpolated_reference(known, hit, heights, size, STEP, unlit,
@@ -367,7 +367,8 @@ def test_an_opening_is_measured_between_the_floor_samples(apart, a, b, bridged):
         assert (out == nk.interpolated_reference(grid, grid, heights, 4, STEP, False,
                                                  cells)).all()
     heights = np.zeros(known.shape, np.float32)
-    assert nk.interpolated(known, known, heights, 4, STEP)[2, 2:1 + apart].all() \
+    assert nk.interpolated(known, known, heights, 4, STEP, False, nk.NO_SAMPLES)[
+        2, 2:1 + apart].all() \
         == (apart <= 5)  # without samples, to the cells' edges
 
 
