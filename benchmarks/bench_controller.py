@@ -41,13 +41,14 @@ import numpy as np
 from benchmarks.bench_mapping import RECORDING, corridor_recording
 from scanmap.datasets.recordings import ScanSource
 from scanmap.grid.rays import scan_rays
+from scanmap.io.trajectory import read_tum
 from scanmap.mapping.config import MapperConfig
 from scanmap.mapping.mapper import Mapper
 from scanmap.navigation.floor import RobotShape
 from scanmap.navigation.obstacles import QueryStatus
+from scanmap_driver.recording import INDEX_NAME
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel, reference_scanner
-from scanmap_driver.sim import ScanTruth, truth_path
 from scanmap_driver.sim.ideal import IdealScan, ideal_scans
 from scanmap_driver.sim.scene import builtin_scene
 
@@ -111,12 +112,13 @@ def corridor_drive(scans: int = SCANS, seed: int = 0) -> dict:
 
 
 def recording_drive(path: Path = RECORDING) -> dict:
-    """The same measures on a simulated recording (its scans as the camera saw them, the
-    true poses and the first scan's floor annulus from its ground truth)."""
+    """The same measures on a simulated recording: its scans as the camera saw them, the
+    true poses of its ground truth (`trajectory.txt`, as `scanmap map` reads them), the
+    floor annulus of its first scan's points placed at its true pose."""
     source = ScanSource.open(path)
     scans = [item.scan for item in source]
-    starts = [ScanTruth.load(truth_path(path, scan.index), mask=False).pose_start
-              for scan in scans]
+    truth = read_tum(source.ground_truth / "trajectory.txt").poses
+    starts = [truth[scan.index] for scan in scans]
     points, _ = scan_rays(scans[0], source.model, starts[0])
     return _drive(scans, starts, _annulus(points, starts[0]), source.model)
 
@@ -179,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
                         "corridor, when there)")
     args = parser.parse_args(argv)
     drives = {"ideal": corridor_drive()}
-    if (args.recording / "recording.json").is_file():
+    if (args.recording / INDEX_NAME).is_file():
         drives["recording"] = recording_drive(args.recording)
     print(json.dumps(drives, indent=1))
     return 0
