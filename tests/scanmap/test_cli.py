@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -48,6 +49,46 @@ def test_reexports_driver_types():
     from scanmap_driver.scan import Scan as DriverScan
 
     assert Scan is DriverScan
+
+
+def test_the_package_loads_its_names_on_first_use():
+    """`import scanmap` imports no NumPy (the command line sets the BLAS threads before
+    it loads); each public name then comes from its module, and `dir` lists them all."""
+    code = ("import sys, scanmap; print('numpy' in sys.modules); "
+            "print(all(getattr(scanmap, n) is not None for n in scanmap.__all__)); "
+            "print(set(scanmap.__all__) <= set(dir(scanmap)))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True)
+    assert result.stdout.split() == ["False", "True", "True"]
+    from scanmap.mapping import Mapper
+    from scanmap.navigation import segment
+
+    assert scanmap.Mapper is Mapper and scanmap.segment is segment
+    with pytest.raises(AttributeError, match="no attribute 'Mappr'"):
+        scanmap.Mappr  # noqa: B018
+
+
+BLAS_PRODUCT = ("import os, numpy as np; a = np.ones((600, 600)); a @ a; "
+                "print(os.environ.get('OPENBLAS_NUM_THREADS'), "
+                "len(os.listdir('/proc/self/task')))")
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
+def test_the_command_line_runs_blas_on_one_thread_unless_told_otherwise():
+    """A product large enough for OpenBLAS to share starts no helper thread in a process
+    that imported the command line first (one thread: the main one), as a plain NumPy
+    process does; a user's OPENBLAS_NUM_THREADS is kept."""
+    def run(env_value: str | None) -> list[str]:
+        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+        if env_value is not None:
+            env["OPENBLAS_NUM_THREADS"] = env_value
+        result = subprocess.run([sys.executable, "-c", "import scanmap.cli; " + BLAS_PRODUCT],
+                                capture_output=True, text=True, check=True, env=env)
+        return result.stdout.split()
+
+    assert run(None) == ["1", "1"]
+    kept, threads = run("2")
+    assert kept == "2" and int(threads) > 1  # helpers started: the count can tell
 
 
 HEAVY_AT_START = ("open3d", "scipy.optimize", "scipy.ndimage", "scipy.special")
