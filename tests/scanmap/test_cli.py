@@ -33,10 +33,17 @@ def test_the_executable_exits_with_the_command_s_code_and_its_output(tmp_path):
                              str(tmp_path / "map")], capture_output=True, text=True)
     assert result.returncode == 1
     assert f"scanmap: error: {missing}" in result.stderr
-    script = "from scanmap.cli import exit_without_collecting; print('kept'); " \
-             "exit_without_collecting(3)"
+    script = ("import atexit; from scanmap.cli import exit_without_collecting; "
+              "atexit.register(print, 'atexit ran'); print('kept', end=' '); "
+              "exit_without_collecting(3)")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
-    assert (result.returncode, result.stdout) == (3, "kept\n")
+    assert (result.returncode, result.stdout) == (3, "kept atexit ran\n")
+    # a thread still running is waited for (its output is not lost)
+    script = ("import threading, time; from scanmap.cli import exit_without_collecting; "
+              "threading.Thread(target=lambda: (time.sleep(0.3), print('thread done'))).start(); "
+              "exit_without_collecting(4)")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert (result.returncode, result.stdout) == (4, "thread done\n")
 
 
 def test_no_command_prints_help_and_fails(capsys):
