@@ -384,14 +384,18 @@ def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[sl
 
 
 def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
-    """The cells (rows, cols) of `layers` as a window of their own."""
+    """The cells (rows, cols) of `layers` as a window of their own, copied contiguous: the
+    kernels then see the one array layout a whole window has, so each is compiled, cached
+    and loaded once, not again for strided views."""
+    def crop(array: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(array[rows, cols])
+
     return CellLayers(
         origin=(layers.origin[0] + cols.start * layers.resolution,
                 layers.origin[1] + rows.start * layers.resolution),
         resolution=layers.resolution, z_min=layers.z_min, mask_dz=layers.mask_dz,
-        levels=layers.levels[rows, cols], counts=layers.counts[rows, cols],
-        nlev=layers.nlev[rows, cols], seen=layers.seen[rows, cols],
-        updated=layers.updated[rows, cols], stood=layers.stood)
+        levels=crop(layers.levels), counts=crop(layers.counts), nlev=crop(layers.nlev),
+        seen=crop(layers.seen), updated=crop(layers.updated), stood=layers.stood)
 
 
 def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
