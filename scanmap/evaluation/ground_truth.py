@@ -67,17 +67,20 @@ def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.
     primary = truth.laser["primary"].astype(bool)
     true_key = (truth.laser["frame"][primary].astype(np.int64) * width
                 + np.rint(truth.laser["u"][primary]).astype(np.int64))
-    true_range = np.hypot(*truth.laser["base"][primary][:, :2].T)
+    true_base = truth.laser["base"][primary]
+    true_range = np.hypot(true_base[:, 0], true_base[:, 1])
     if not true_key.size:
         return np.zeros(0), 0
-    order = np.argsort(true_key)
+    order = _ascending(true_key)  # the simulator writes them frame by frame, column by column
     true_key, true_range = true_key[order], true_range[order]
-    # Frame by frame, each point turned back into the head by its frame's first heading.
-    rows = np.argsort(scan.frame_index, kind="stable")
+    # Frame by frame (the assembly's order), each point turned back into the head by its
+    # frame's first heading.
+    rows = _ascending(scan.frame_index)
     frame = scan.frame_index[rows].astype(np.int64)
     points = np.asarray(scan.points, dtype=np.float64)[rows]
-    _, first, which = np.unique(frame, return_index=True, return_inverse=True)
-    heading = np.asarray(scan.heading, dtype=np.float64)[rows][first][which]
+    first = np.flatnonzero(np.diff(frame, prepend=-1))
+    heading = np.repeat(np.asarray(scan.heading, dtype=np.float64)[rows][first],
+                        np.diff(first, append=frame.size))
     mount = transform_points(invert_pose(model.head_mount.pose), points)
     c, s = np.cos(heading), np.sin(heading)
     head = np.column_stack([c * mount[:, 0] + s * mount[:, 1],
@@ -88,6 +91,14 @@ def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.
     found = (true_key[at] == key) & np.isfinite(u)
     measured = np.hypot(points[:, 0], points[:, 1])
     return measured[found] - true_range[at[found]], int(primary.sum())
+
+
+def _ascending(keys: np.ndarray) -> np.ndarray | slice:
+    """Indices that sort `keys` (stably), or the whole slice when they are in order
+    already (no copy, no sort: the usual case)."""
+    if keys.size < 2 or bool((keys[1:] >= keys[:-1]).all()):
+        return slice(None)
+    return np.argsort(keys, kind="stable")
 
 
 def heading_errors(scan: Scan, truth: ScanTruth) -> np.ndarray:

@@ -152,3 +152,22 @@ def test_range_and_heading_errors_see_a_known_bias(office_recording):
     turned = dataclasses.replace(scan, heading=scan.heading + 0.01)
     assert np.median(evaluation.heading_errors(turned, scan_truth)) == \
         pytest.approx(np.median(headings) + 0.01, abs=1e-9)
+
+
+def test_range_errors_do_not_depend_on_the_order_of_points_or_truth(office_recording):
+    """The points come frame by frame and the truth column by column, which the errors
+    use when they can; shuffled, both give the same errors (as a set) and count."""
+    recording = Recording.open(office_recording)
+    scan, _, _ = next(recording_scans(recording))
+    scan_truth = ScanTruth.load(truth_path(office_recording, 0))
+    error, total = evaluation.range_errors(scan, scan_truth, recording.model)
+    rng = np.random.default_rng(5)
+    rows = rng.permutation(len(scan))
+    shuffled = dataclasses.replace(scan, **{name: getattr(scan, name)[rows] for name in (
+        "points", "colors", "time", "heading", "frame_index", "range_sigma")})
+    order = rng.permutation(len(scan_truth.laser["frame"]))
+    truth_shuffled = dataclasses.replace(
+        scan_truth, laser={k: v[order] for k, v in scan_truth.laser.items()})
+    again, total_again = evaluation.range_errors(shuffled, truth_shuffled, recording.model)
+    assert total_again == total and error.size > 0.6 * total
+    np.testing.assert_array_equal(np.sort(again), np.sort(error))
