@@ -318,6 +318,9 @@ def _ridges(flat: np.ndarray, height: int, width: int, by_rows: bool, dark: bool
     count = np.empty(n_lines, kind)
     lk.ridge_kernel(e, n_pos, pad, m, offset, side, min(noise_int, 2**15 - 1),
                     min(noise_int // 2, 2**15 - 1), best, best_pos, count)
+    # The passes after the ridge take int32, as the wide pass's do: one specialisation
+    # of each kernel to compile, cache and load, not one per type (fit_kernel: 15 ms).
+    best, best_pos, count = (a.astype(np.int32, copy=False) for a in (best, best_pos, count))
     thr = noise_thr
     if s.threshold == "auto" and hi > lo:
         rank = (3 * (hi - lo - 1)) // 4
