@@ -155,13 +155,17 @@ def map_to_folder(source: str | os.PathLike[str], out: str | os.PathLike[str], *
 PRELOAD_REACH = 2.0  # m around the newest pose: the window `preload_segmentation` segments
 
 
-def preload_segmentation(mapper: Mapper) -> threading.Thread:
+def preload_segmentation(mapper: Mapper) -> threading.Thread | None:
     """Segment the newest pose's surroundings in a background thread and drop the result:
     it loads the segmentation's Numba kernels (19 of them, 0.1 s of CPU under Numba's
     lock) while the last scans are assembled and a worker runs out of work, instead of
     after the loop, where the map's products wait for them. The grid's `layers` copy
-    under its lock, so fusion goes on meanwhile."""
-    x, y = mapper.latest_pose[:2, 3]
+    under its lock, so fusion goes on meanwhile. None (nothing started) without a
+    finite pose."""
+    pose = mapper.latest_pose
+    if pose is None or not np.isfinite(pose[:2, 3]).all():
+        return None
+    x, y = pose[:2, 3]
     window = (x - PRELOAD_REACH, y - PRELOAD_REACH, x + PRELOAD_REACH, y + PRELOAD_REACH)
     thread = threading.Thread(target=mapper.segment, args=(window,),
                               name="scanmap-preload-segmentation")

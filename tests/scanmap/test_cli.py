@@ -26,8 +26,8 @@ def test_help_lists_subcommands_and_runs_as_module():
 
 
 def test_the_executable_exits_with_the_command_s_code_and_its_output(tmp_path):
-    """`run` skips the shutdown's garbage collections, not the exit code or what was
-    printed (a command that fails still says so)."""
+    """`run` skips the interpreter's teardown, not the exit code, what was printed (a
+    command that fails still says so), the atexit handlers or a thread still running."""
     missing = tmp_path / "no_recording"
     result = subprocess.run([sys.executable, "-m", "scanmap", "map", str(missing), "--out",
                              str(tmp_path / "map")], capture_output=True, text=True)

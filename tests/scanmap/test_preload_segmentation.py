@@ -40,3 +40,12 @@ def test_after_the_preload_the_segmentation_loads_no_kernel():
     assert added == 0 and loaded >= 15
     added, _ = added_by_segmentation("")  # the measure can tell: without it, it loads them
     assert added >= 15
+
+
+def test_without_a_pose_nothing_is_preloaded():
+    from scanmap.mapping import Mapper
+    from scanmap.pipelines.offline import OFFLINE_CONFIG, preload_segmentation
+    from scanmap_driver import reference_scanner
+
+    assert preload_segmentation(Mapper(reference_scanner(), OFFLINE_CONFIG, offline=True)) \
+        is None
