@@ -81,8 +81,11 @@ def exit_without_collecting(code: int) -> NoReturn:
            if t is not threading.main_thread()):
         sys.exit(code)
     atexit._run_exitfuncs()  # what a normal exit runs first (logging's flush among them)
-    sys.stdout.flush()
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a reader gone (`| head`), or `main` closed it
+            pass
     os._exit(code)
 
 

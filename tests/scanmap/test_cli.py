@@ -38,6 +38,16 @@ def test_the_executable_exits_with_the_command_s_code_and_its_output(tmp_path):
               "exit_without_collecting(3)")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert (result.returncode, result.stdout) == (3, "kept atexit ran\n")
+    # output piped into a reader that closed early (`| head`): the code, no traceback
+    script = ("import sys; from scanmap.cli import exit_without_collecting\n"
+              "try:\n    for i in range(100000): print('line', i)\n"
+              "except BrokenPipeError:\n    sys.stderr.close()\n"
+              "exit_without_collecting(0)")
+    process = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    process.stdout.read(10)
+    process.stdout.close()
+    assert (process.wait(), process.stderr.read()) == (0, b"")
     # a thread still running is waited for (its output is not lost)
     script = ("import threading, time; from scanmap.cli import exit_without_collecting; "
               "threading.Thread(target=lambda: (time.sleep(0.3), print('thread done'))).start(); "
