@@ -501,8 +501,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         with np.errstate(invalid="ignore"):  # the feet of surfaces standing on the floor
             foot = (layers.nlev > 0) & ~known_floor \
                 & (np.abs(bottom - floor_height) <= robot.step_height)
-        # The cells at a span's ends may be lit on their outer parts only, so the opening
-        # can be two cells wider than the unobserved span: bridge at most gap - 2 cells
+        # An opening of at most gap cells (`interpolated`'s size + 2), measured between
+        # the floor hits of the cells at its ends (from the far edge of an end without)
         lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
                                 robot.step_height, True, _floor_samples(layers, is_floor)
                                 ) & ~seen_floor & ~foot
@@ -632,8 +632,9 @@ def _floor_samples(layers: CellLayers, is_floor: np.ndarray) -> np.ndarray:
     x and y offsets from the cell's centre, in cells), NaN off the floor: the ends of an
     opening between the laser's lines, to measure it to the hits rather than to the
     cells' edges (the hits nearest the opening lie no farther out than their mean)."""
-    lowest = layers.levels[:, :, 0, gk.MX:gk.MY + 1] / np.float32(layers.resolution)
-    return np.where((is_floor & (layers.nlev > 0))[:, :, None], lowest, np.float32(np.nan))
+    samples = layers.levels[:, :, 0, gk.MX:gk.MY + 1] / np.float32(layers.resolution)
+    samples[~(is_floor & (layers.nlev > 0))] = np.nan
+    return samples
 
 
 def _dips(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,
