@@ -122,3 +122,38 @@ def test_the_command_line_starts_without_open3d_or_scipy_s_heavy_parts():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True)
     assert result.stdout.split() == ["False"] * len(HEAVY_AT_START)
+
+
+NUMBA_LINEAR_ALGEBRA = """
+import sys
+import numpy as np
+from numba import njit
+from scanmap.cli import load_blas_modules_alone
+
+load_blas_modules_alone()
+
+@njit(cache=False)
+def solve_and_multiply(a, b):
+    return np.linalg.solve(a, b), a @ b
+
+a = np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]])
+b = np.array([1.0, 2.0, 3.0])
+x, product = solve_and_multiply(a, b)
+print(int("scipy.linalg" in sys.modules), float(np.abs(a @ x - b).max()),
+      float(np.abs(product - np.array([6.0, 10.0, 8.0])).max()))
+import scipy.linalg
+print(float(np.abs(scipy.linalg.solve(a, b) - x).max()))
+"""
+
+
+def test_numba_s_blas_and_lapack_work_without_scipy_linalg_s_package():
+    """After `load_blas_modules_alone` (the executable's start), a kernel's LAPACK solve
+    and BLAS product are right (against the closed form) while `scipy.linalg`'s package
+    stays unloaded; importing it later still works and agrees."""
+    result = subprocess.run([sys.executable, "-c", NUMBA_LINEAR_ALGEBRA], capture_output=True,
+                            text=True, check=True)
+    first, second = result.stdout.splitlines()
+    loaded, residual, product_error = first.split()
+    assert loaded == "0"
+    assert float(residual) < 1e-12 and float(product_error) == 0.0
+    assert float(second) < 1e-12
