@@ -103,13 +103,17 @@ def load_blas_modules_alone() -> None:
     command uses. Each extension module alone loads in 2 ms. They are the same modules
     under their own names, so Numba's calls and a later `import scipy.linalg` use them;
     only the attributes `scipy.linalg.cython_blas` and `cython_lapack` stay unbound
-    (Numba and Cython look the modules up by name). Where SciPy lays its files out
+    (Numba, Cython and `from scipy.linalg import cython_blas` look the modules up by
+    name). Where SciPy lays its files out
     otherwise, nothing is done and Numba imports the package as before. For a process's
     start, from `run`.
     """
     if "scipy.linalg" in sys.modules:
         return
-    import scipy  # the package Numba's check imports anyway (15 ms)
+    try:
+        import scipy  # the package Numba's check imports anyway (15 ms)
+    except ImportError:  # Numba's own check then reports it
+        return
 
     folder = os.path.join(os.path.dirname(scipy.__file__), "linalg")
     for stem in ("cython_blas", "cython_lapack"):
