@@ -11,12 +11,18 @@ shares of the scans:
 * unknown ahead: `travel` meets unknown space within REACH. `examples/controller.py`
   with its defaults creeps exactly then (its speed law gives under the creep speed below
   0.44 m from its centre: 0.19 m of travel for a 0.25 m radius) when nothing is nearer.
+* blocked ahead: the robot's disc swept REACH along its heading, from its true pose,
+  covers a cell the scene's truth holds as an obstacle or a drop-off (`blocked`): every
+  controller slows there, whatever the map knows, so creeping there is no fault of the
+  map's (on the corridor drive, its bin).
 * unseeable ahead: the robot's disc swept REACH along its heading covers a cell that no
   scan so far could have seen: outside the floor annulus (FLOOR_BAND: the horizontal
   ranges at which the first scan's rays met the floor, camera 1 m up) of every earlier
   scan pose, and not under the robot where it stood at one. No map can know such a cell
   (short of assuming floor nobody saw), so this share is the least a controller that
   never enters unknown space at speed can creep on this drive.
+* avoidable: the scans with the path ahead unknown that are neither blocked nor
+  unseeable, where a map could have let the controller drive on.
 
 The same drive is measured twice: on ideal scans (the simulator's geometry, every ray
 that meets the floor up to the 4 m range limit) and on the corridor recording the replay
@@ -50,6 +56,7 @@ from scanmap_driver.recording import INDEX_NAME
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel, reference_scanner
 from scanmap_driver.sim.ideal import IdealScan, ideal_scans
+from scanmap_driver.sim.raster import DROP_OFF, OBSTACLE, TruthRaster, truth_raster
 from scanmap_driver.sim.scene import builtin_scene
 
 SCANS = 20  # the main job's recording of the corridor
@@ -103,12 +110,23 @@ def unseeable(cells: np.ndarray, positions: np.ndarray, annulus: tuple[float, fl
     return int((~seen.any(axis=1)).sum())
 
 
+def blocked(cells: np.ndarray, raster: TruthRaster) -> int:
+    """How many of `cells` (centres) the truth raster holds as obstacle or drop-off."""
+    index = raster.cell_of(cells)
+    rows, cols = raster.classes.shape
+    inside = (index[:, 0] >= 0) & (index[:, 0] < rows) & (index[:, 1] >= 0) \
+        & (index[:, 1] < cols)
+    classes = raster.classes[index[inside, 0], index[inside, 1]]
+    return int(np.isin(classes, (OBSTACLE, DROP_OFF)).sum())
+
+
 def corridor_drive(scans: int = SCANS, seed: int = 0) -> dict:
     """The module docstring's measures on the corridor's ideal scans, and each scan's
     travel."""
-    ideal = list(ideal_scans(builtin_scene("corridor"), seed=seed, scans=scans))
+    scene = builtin_scene("corridor")
+    ideal = list(ideal_scans(scene, seed=seed, scans=scans))
     return _drive([s.scan for s in ideal], [s.pose_start for s in ideal],
-                  floor_annulus(ideal[0]), reference_scanner())
+                  floor_annulus(ideal[0]), reference_scanner(), truth_raster(scene))
 
 
 def recording_drive(path: Path = RECORDING) -> dict:
@@ -120,15 +138,16 @@ def recording_drive(path: Path = RECORDING) -> dict:
     truth = read_tum(source.ground_truth / "trajectory.txt").poses
     starts = [truth[scan.index] for scan in scans]
     points, _ = scan_rays(scans[0], source.model, starts[0])
-    return _drive(scans, starts, _annulus(points, starts[0]), source.model)
+    return _drive(scans, starts, _annulus(points, starts[0]), source.model,
+                  TruthRaster.load(source.ground_truth / "raster.npz"))
 
 
 def _drive(scans: Sequence[Scan], starts: Sequence[np.ndarray],
-           annulus: tuple[float, float], model: ScannerModel) -> dict:
+           annulus: tuple[float, float], model: ScannerModel, raster: TruthRaster) -> dict:
     robot = RobotShape()
     mapper = Mapper(model, MapperConfig(max_age=1e9))  # never stale here
     resolution = mapper.config.grid.resolution
-    travels, unknown, blind = [], [], []
+    travels, unknown, blind, stopped = [], [], [], []
     for k, scan in enumerate(scans):
         mapper.add(scan)
         pose = mapper.latest_pose
@@ -141,11 +160,17 @@ def _drive(scans: Sequence[Scan], starts: Sequence[np.ndarray],
                            REACH, robot.radius, resolution)
         stood = np.array([s[:2, 3] for s in starts[:k + 1]])
         blind.append(unseeable(path, stood, annulus, robot.radius, resolution) > 0)
+        stopped.append(blocked(path, raster) > 0)
+    avoidable = [u and not b and not s for u, b, s in zip(unknown, blind, stopped, strict=True)]
     return {"scans": len(scans), "floor_annulus_m": [round(r, 3) for r in annulus],
             "unknown_ahead_share": float(np.mean(unknown)),
             "unseeable_ahead_share": float(np.mean(blind)),
+            "blocked_ahead_share": float(np.mean(stopped)),
+            "avoidable_unknown_share": float(np.mean(avoidable)),
             "unknown_ahead_scans": [k for k, u in enumerate(unknown) if u],
             "unseeable_ahead_scans": [k for k, b in enumerate(blind) if b],
+            "blocked_ahead_scans": [k for k, b in enumerate(stopped) if b],
+            "avoidable_unknown_scans": [k for k, a in enumerate(avoidable) if a],
             "travel_m": travels}
 
 
@@ -167,7 +192,11 @@ def run(quick: bool = False) -> list[dict]:
                      "error": drive["unknown_ahead_share"],
                      "error_unit": "share of the scans (goal under 0.1)", **drive,
                      "peers": {"unseeable: no scan could have seen the path yet":
-                               {"error": drive["unseeable_ahead_share"]}}})
+                               {"error": drive["unseeable_ahead_share"]},
+                               "blocked: a true obstacle on the path":
+                               {"error": drive["blocked_ahead_share"]},
+                               "avoidable: unknown, neither unseeable nor blocked":
+                               {"error": drive["avoidable_unknown_share"]}}})
     return rows
 
 

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from benchmarks.bench_controller import (
     SWEEP_STEP,
+    blocked,
     corridor_drive,
     floor_annulus,
     recording_drive,
@@ -21,6 +22,7 @@ from benchmarks.bench_controller import (
 from scanmap_driver.scanner_model import reference_scanner
 from scanmap_driver.sim import ScanTruth, truth_path
 from scanmap_driver.sim.ideal import ideal_scans
+from scanmap_driver.sim.raster import DROP_OFF, FLOOR, OBSTACLE, TruthRaster
 from scanmap_driver.sim.scene import builtin_scene
 from scanmap_driver.sim.simulate import simulate_recording
 
@@ -65,6 +67,19 @@ def test_a_cell_is_unseeable_only_outside_every_floor_annulus_and_footprint():
     assert unseeable(cells[[1, 2, 4]], positions, (1.5, 4.0), 0.25, RES) == 0
 
 
+def test_a_path_is_blocked_by_the_truth_s_obstacle_and_drop_off_cells_it_covers():
+    classes = np.full((10, 10), FLOOR, np.uint8)
+    classes[2, 5] = OBSTACLE
+    classes[7, 1] = DROP_OFF
+    raster = TruthRaster(classes, np.array([0.0, 0.0]), RES, (0.05, 1.0))
+    cells = np.array([[5.5, 2.5],  # the obstacle (x from column 5, y from row 2)
+                      [1.5, 7.5],  # the drop-off
+                      [2.5, 2.5],  # floor
+                      [-0.5, -0.5]]) * RES  # outside the raster
+    assert blocked(cells, raster) == 2
+    assert blocked(cells[2:], raster) == 0
+
+
 def test_the_floor_annulus_is_where_the_true_rays_meet_the_floor():
     """Against the simulator's noise-free points of the same scan (base_link: the robot
     stands still while the first scan turns)."""
@@ -76,11 +91,18 @@ def test_the_floor_annulus_is_where_the_true_rays_meet_the_floor():
 
 
 def test_the_map_never_knows_a_path_no_scan_could_have_seen():
-    drive = corridor_drive(6)
+    drive = corridor_drive(8)
     assert drive["unseeable_ahead_scans"][:1] == [0]  # the start: nothing seen nearer
     assert set(drive["unseeable_ahead_scans"]) <= set(drive["unknown_ahead_scans"])
     assert drive["unknown_ahead_share"] >= drive["unseeable_ahead_share"] > 0
     assert all(0.0 <= t <= 1.0 for t in drive["travel_m"])
+    # The bin (r 0.18 m at x 2.8, y -0.52) meets the robot's disc within 0.19 m of scan
+    # 7's true pose, and the map does not let it drive there either
+    assert drive["blocked_ahead_scans"] == [7]
+    assert drive["travel_m"][7] < 0.19
+    avoidable = set(drive["avoidable_unknown_scans"])
+    assert avoidable == set(drive["unknown_ahead_scans"]) - {7} - set(
+        drive["unseeable_ahead_scans"])
 
 
 def test_on_a_rendered_recording_too_the_map_never_knows_a_path_no_scan_could_have_seen(
