@@ -112,12 +112,7 @@ def unseeable(cells: np.ndarray, positions: np.ndarray, annulus: tuple[float, fl
 
 def blocked(cells: np.ndarray, raster: TruthRaster) -> int:
     """How many of `cells` (centres) the truth raster holds as obstacle or drop-off."""
-    index = raster.cell_of(cells)
-    rows, cols = raster.classes.shape
-    inside = (index[:, 0] >= 0) & (index[:, 0] < rows) & (index[:, 1] >= 0) \
-        & (index[:, 1] < cols)
-    classes = raster.classes[index[inside, 0], index[inside, 1]]
-    return int(np.isin(classes, (OBSTACLE, DROP_OFF)).sum())
+    return int(np.isin(raster.class_at(cells), (OBSTACLE, DROP_OFF)).sum())
 
 
 def corridor_drive(scans: int = SCANS, seed: int = 0) -> dict:

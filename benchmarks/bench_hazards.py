@@ -83,7 +83,7 @@ from scanmap_driver.sim.ideal import IdealScan, ideal_scans
 from scanmap_driver.sim.raster import DROP_OFF as TRUE_DROP_OFF
 from scanmap_driver.sim.raster import FLOOR as TRUE_FLOOR
 from scanmap_driver.sim.raster import OBSTACLE as TRUE_OBSTACLE
-from scanmap_driver.sim.raster import OUTSIDE, TruthRaster, truth_raster
+from scanmap_driver.sim.raster import TruthRaster, truth_raster
 from scanmap_driver.sim.scene import Scene, builtin_scene, resolve_scene
 
 ROBOT = RobotShape()
@@ -139,12 +139,7 @@ def truth_classes(seg: Segmentation, raster: TruthRaster) -> np.ndarray:
     x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
     y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
     gx, gy = np.meshgrid(x, y)
-    cells = raster.cell_of(np.column_stack([gx.ravel(), gy.ravel()]))
-    rows, cols = raster.classes.shape
-    inside = (cells[:, 0] >= 0) & (cells[:, 0] < rows) & (cells[:, 1] >= 0) & (cells[:, 1] < cols)
-    out = np.full(len(cells), OUTSIDE, np.uint8)
-    out[inside] = raster.classes[cells[inside, 0], cells[inside, 1]]
-    return out.reshape(ny, nx)
+    return raster.class_at(np.column_stack([gx.ravel(), gy.ravel()])).reshape(ny, nx)
 
 
 def traversable(seg: Segmentation) -> np.ndarray:

@@ -55,6 +55,17 @@ class TruthRaster:
         index = np.floor((np.asarray(xy)[:, :2] - self.origin) / self.resolution)
         return index[:, ::-1].astype(np.int64)
 
+    def class_at(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) uint8 class of the cell holding each `map` point; OUTSIDE beyond the
+        raster."""
+        cells = self.cell_of(xy)
+        rows, cols = self.classes.shape
+        inside = (cells[:, 0] >= 0) & (cells[:, 0] < rows) & (cells[:, 1] >= 0) \
+            & (cells[:, 1] < cols)
+        out = np.full(len(cells), OUTSIDE, np.uint8)
+        out[inside] = self.classes[cells[inside, 0], cells[inside, 1]]
+        return out
+
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the raster as `.npz` (atomically)."""
         flat = np.zeros(self.classes.shape, np.float32)

@@ -28,8 +28,15 @@ def _room(objects):
 
 
 def _class_at(raster, x, y):
-    row, col = raster.cell_of(np.array([[x, y]]))[0]
-    return raster.classes[row, col]
+    return raster.class_at(np.array([[x, y]]))[0]
+
+
+def test_points_beyond_the_raster_are_outside():
+    classes = np.array([[FLOOR, OBSTACLE], [OBSTACLE, FLOOR]], np.uint8)
+    raster = TruthRaster(classes, np.array([1.0, 2.0]), 0.5, (0.05, 1.0))
+    points = np.array([[1.25, 2.25], [1.75, 2.25], [1.25, 2.75], [0.9, 2.25], [2.1, 2.25],
+                       [1.25, 1.9], [1.25, 3.1]])
+    assert raster.class_at(points).tolist() == [FLOOR, OBSTACLE, OBSTACLE] + [OUTSIDE] * 4
 
 
 def test_classes_of_a_room():
