@@ -26,14 +26,13 @@ import os
 import resource
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
-from benchmarks.bench_mapping import RECORDING
+from benchmarks.bench_mapping import RECORDING, map_command
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 PACKAGES = ("scanmap", "scanmap_driver")
@@ -56,8 +55,8 @@ def run_command(tree: Path, recording: Path, out: Path) -> Run:
         [str(tree), *filter(None, [os.environ.get("PYTHONPATH")])])}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "scanmap", "map", str(recording), "--out", str(out)],
-                   cwd=tree, env=env, check=True, capture_output=True)
+    subprocess.run(map_command(recording, out), cwd=tree, env=env, check=True,
+                   capture_output=True)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     report = json.loads((out / "report.json").read_text())

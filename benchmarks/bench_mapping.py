@@ -73,6 +73,11 @@ def _pipeline_rows(recording: Path, scratch: Path) -> list[dict]:
     return rows
 
 
+def map_command(recording: Path, out: Path) -> list[str]:
+    """The `scanmap map` command line a user runs, with this interpreter."""
+    return [sys.executable, "-m", "scanmap", "map", str(recording), "--out", str(out)]
+
+
 def command_row(recording: Path, scratch: Path, runs: int) -> dict:
     """`scanmap map RECORDING` in a new process `runs` times: the median wall time from
     start to exit (interpreter start-up, imports, mapping, segmentation, files, report)
@@ -81,8 +86,7 @@ def command_row(recording: Path, scratch: Path, runs: int) -> dict:
     walls = []
     for _ in range(runs):
         start = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "scanmap", "map", str(recording), "--out",
-                        str(out)], check=True, capture_output=True)
+        subprocess.run(map_command(recording, out), check=True, capture_output=True)
         walls.append(time.perf_counter() - start)
     report = json.loads((out / "report.json").read_text())
     recorded, wall = report["mapping"]["recorded_seconds"], float(np.median(walls))
