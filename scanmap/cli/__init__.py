@@ -104,9 +104,8 @@ def load_blas_modules_alone() -> None:
     under their own names, so Numba's calls and a later `import scipy.linalg` use them;
     only the attributes `scipy.linalg.cython_blas` and `cython_lapack` stay unbound
     (Numba, Cython and `from scipy.linalg import cython_blas` look the modules up by
-    name). Where SciPy lays its files out
-    otherwise, nothing is done and Numba imports the package as before. For a process's
-    start, from `run`.
+    name). Where SciPy lays its files out otherwise, nothing is done and Numba imports
+    the package as before. For a process's start, from `run`.
     """
     if "scipy.linalg" in sys.modules:
         return
