@@ -23,7 +23,12 @@ Insertion is one scan at a time, in three passes:
    the floor under it is hit in every scan. A level hit in `static_scans` scans or
    more (a wall, furniture) is passed only by rays within `pass_radius` of its mean
    hit: where a face cuts a cell, rays through the cell's free part would otherwise
-   wear it away. Guards against eroding surfaces at grazing incidence: the last
+   wear it away. Nor is it (or a level hit in half as many scans, a sliver of the same
+   face) passed by a ray that runs along its face, within `graze_angle` of the face's
+   direction read from the mean hits of the neighbouring cells' static levels: seen
+   from nearly in its plane, a face's cells are crossed through their free part close
+   to the mean hit, which lies on the face (a cabinet's end face lost three cells so in
+   a room with people). Guards against eroding surfaces at grazing incidence: the last
    `clear_margin` metres before the hit clear nothing; a level hit in this scan within
    `protect` metres of the ray's heights is not cleared ("occupied wins", as in
    OctoMap, but per height, so a level wrongly spanning a gap still loses the passes
@@ -74,7 +79,7 @@ POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO
 
 # Indices into the float parameter vector `fp` of the insertion kernel.
 (FP_RES, FP_X0, FP_Y0, FP_ZMIN, FP_MASK_DZ, FP_GAP, FP_MARGIN, FP_LHIT, FP_LMISS, FP_LMAX,
- FP_PROTECT, FP_PASS_RADIUS) = range(12)
+ FP_PROTECT, FP_PASS_RADIUS, FP_GRAZE_SIN) = range(13)
 # Indices into the integer parameter vector `ip`.
 IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN, IP_STATIC, IP_VISITS = range(8)
 
@@ -478,8 +483,62 @@ def _beside_static(lev_f, lev_n, li, path, fp, static_scans) -> bool:
 
 
 @njit(cache=True, nogil=True)
-def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels, max_miss,
-               static_scans, scan) -> int:
+def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
+                   levels, static_scans) -> bool:
+    """A ray (x-y direction path[4:6]) that runs along a static face through level record
+    li of cell (ix, iy): one mean hit cannot tell a ray beside a face from one through it,
+    so the face is read from the neighbouring cells (see _pass_cell).
+
+    Their static levels (hit in `static_scans` scans or more) that reach the ray's heights
+    [za, zb] (within a height bin) give one mean hit a cell; it takes two or more. The ray
+    runs along the face when one of them lies, from the level's own mean hit, within
+    `graze_angle` of the ray's direction (ahead or behind, at least half a cell away) and
+    the others all lie on one side of the ray's line: a face crossed steeply has its cells
+    on both sides of the ray, a blob (a floor, a box's top at the ray's heights) all around
+    it, while beside a corner (a cabinet's) the other face lies on one side only. One
+    static neighbour alone (a person's outline) is too little to tell a face.
+    """
+    res, tol, graze = fp[FP_RES], fp[FP_MASK_DZ], fp[FP_GRAZE_SIN]
+    dx, dy = path[4], path[5]
+    length = np.hypot(dx, dy)
+    if length == 0.0 or graze <= 0.0:
+        return False
+    ux, uy = dx / length, dy / length
+    mask = (1 << shift) - 1
+    ty_max, tx_max = tile_index.shape
+    mx, my = lev_f[li, MX], lev_f[li, MY]
+    near2 = 0.25 * res * res
+    along, left, right, found = False, False, False, 0
+    for ny in range(-1, 2):
+        for nx in range(-1, 2):
+            jx, jy = ix + nx, iy + ny
+            if (nx == 0 and ny == 0) or jx < 0 or jy < 0 or jy >> shift >= ty_max \
+                    or jx >> shift >= tx_max:
+                continue
+            slot = np.int64(tile_index[jy >> shift, jx >> shift])
+            if slot < 0:
+                continue
+            joff = (slot << (2 * shift)) | ((jy & mask) << shift) | (jx & mask)
+            for lj in range(joff * levels, joff * levels + np.int64(nlev[joff])):
+                if np.int64(lev_n[lj, SCANS]) >= static_scans \
+                        and lev_f[lj, LO] - tol <= zb and za <= lev_f[lj, HI] + tol:
+                    found += 1
+                    px, py = nx * res + lev_f[lj, MX] - mx, ny * res + lev_f[lj, MY] - my
+                    d2 = px * px + py * py
+                    cross = ux * py - uy * px
+                    if cross * cross <= graze * graze * d2:
+                        along = along or d2 >= near2
+                    elif cross > 0.0:
+                        left = True
+                    else:
+                        right = True
+                    break
+    return found >= 2 and along and not (left and right)
+
+
+@njit(cache=True, nogil=True)
+def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bits, path, fp,
+               shift, levels, max_miss, static_scans, scan) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
     A level not hit in this scan takes a miss; one the ray only entered, from above or
@@ -490,8 +549,13 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
     free space (a floor merged with a table top before the gap was seen; the floor where
     a person stood): it is split around the span, and the part without this scan's hits
     takes the miss, or is cut off when thinner than two height bins. `path` is the ray's
-    x-y segment in the cell, relative to its centre (see _beside_static). Returns the
-    levels removed.
+    x-y segment in the cell, relative to its centre (see _beside_static), and its x-y
+    direction. A level not hit in this scan is also left alone by a ray that runs along
+    the static face it lies on (_grazes_static: cell (ix, iy)'s neighbours, found through
+    `tile_index`, give the face's direction), when it was hit in at least half
+    `static_scans` scans: a face that cuts a cell off its centre is hit there in fewer
+    scans than in its neighbours, and the level is split by rays through the free part.
+    Returns the levels removed.
     """
     cleared = 0
     base = off * levels
@@ -507,6 +571,10 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb, bits, path, fp, levels
         _touch(lev_n, lev_flag, li, scan)
         hit_now = lev_flag[li] & HIT_FLAG
         if not hit_now and _beside_static(lev_f, lev_n, li, path, fp, static_scans):
+            continue
+        if not hit_now and 2 * np.int64(lev_n[li, SCANS]) >= static_scans \
+                and _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path,
+                                   fp, shift, levels, static_scans):
             continue
         if not crossed:  # into the level's top or bottom, not through its middle
             # The part the ray passed through is free: trim it off, unless this scan hit
@@ -577,7 +645,8 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
         cells[off, SCAN] = scan64
         n_hits += 1
     n_cleared = 0
-    path = np.empty(4, np.float64)  # a ray's x-y segment in a cell, from the cell's centre
+    path = np.empty(6, np.float64)  # a ray's x-y segment in a cell, from the cell's
+    # centre, and its x-y direction
     key = np.uint64(ip[IP_KEY])
     group = (-1, -1, -1)
     for i in range(points.shape[0]):  # pass 2: rays, traced from the hit back to the origin
@@ -592,6 +661,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
         dxr, dyr, dzr = ox - points[i, 0], oy - points[i, 1], oz - pz
         length = np.sqrt(dxr * dxr + dyr * dyr + dzr * dzr)
         t_margin = fp[FP_MARGIN] / length if length > 0.0 else 2.0
+        path[4], path[5] = dxr, dyr
         ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(
             (points[i, 0] - x0) / res, (points[i, 1] - y0) / res, (ox - x0) / res,
             (oy - y0) / res)
@@ -634,9 +704,10 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                             path[1] = points[i, 1] + dyr * t_clear - cy
                             path[2] = points[i, 0] + dxr * t_out - cx
                             path[3] = points[i, 1] + dyr * t_out - cy
-                            n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, off, za, zb,
-                                                    clear, path, fp, levels, max_miss,
-                                                    static_scans, scan)
+                            n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index,
+                                                    off, ix, iy, za, zb, clear, path, fp,
+                                                    shift, levels, max_miss, static_scans,
+                                                    scan)
             if tmx < tmy:
                 ix += sx
                 t_in = tmx

@@ -31,6 +31,14 @@ class GridConfig:
     within `pass_radius` (m, x-y) of the level's mean hit. Where a face cuts a cell, rays
     through the cell's free part would otherwise clear the face; a level seen briefly (a
     person passing) clears from any pass through its cell.
+    graze_angle: nor is such a level (or one hit in at least half `static_scans` scans)
+    cleared by a ray within this angle (degrees, x-y; 0 turns the rule off) of the face's
+    direction, read from the mean hits of the static levels in the 8 neighbouring cells:
+    seen from nearly in its plane, the face's cells are crossed close to their mean hit,
+    which lies on the face (a cabinet's end face in `people_room(6)`, crossed at 3-7 deg,
+    eroded so). A person who stood for `static_scans` scans leaves such lines of cells
+    too: larger angles keep them longer (over `people_rooms_run(6)`, ghost cells seen
+    through 559 at 20 deg, 543 at 10, 541 without the rule).
     max_range: rays longer than this are dropped (m).
     l_hit, l_miss, l_max: log-odds added per hit and removed per pass (once per scan and
     at most `max_misses` times per scan, respectively), and the clamp.
@@ -50,6 +58,7 @@ class GridConfig:
     protect: float = 0.03
     pass_radius: float = 0.0175
     static_scans: int = 10
+    graze_angle: float = 10.0
     max_range: float = 20.0
     l_hit: float = 0.85
     l_miss: float = 0.4
@@ -68,6 +77,9 @@ class GridConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise MapError(f"GridConfig.{name}: expected a finite number >= 0, got {value!r}")
+        if not (isinstance(self.graze_angle, (int, float)) and 0 <= self.graze_angle < 90):
+            raise MapError(f"GridConfig.graze_angle: expected degrees in [0, 90), "
+                           f"got {self.graze_angle!r}")
         if not math.isfinite(self.z_min):
             raise MapError(f"GridConfig.z_min: expected a finite number, got {self.z_min!r}")
         t = self.tile_cells

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap_driver.errors import MapError
 
 CONFIG = GridConfig(extent=20.0, bundle_run=0)
 
@@ -328,6 +329,76 @@ def test_rays_into_the_top_of_a_long_seen_face_beside_it_leave_it(seen, y, trimm
     (level,) = level_at(grid, 2.025, 0.025)
     assert level[gk.LO] == pytest.approx(0.6)
     assert level[gk.HI] == pytest.approx(0.89 if trimmed else 0.9, abs=1e-3)
+
+
+FACE_YAW = np.radians(30.0)  # the face's direction: it cuts its cells diagonally
+FACE_ALONG = np.array([np.cos(FACE_YAW), np.sin(FACE_YAW), 0.0])
+FACE_ACROSS = np.array([-np.sin(FACE_YAW), np.cos(FACE_YAW), 0.0])
+FACE_START = np.array([1.513, 0.007, 0.0])  # the face crosses a tile edge, x = 1.6 m
+
+
+def slanted_face(config: GridConfig, corner: bool) -> tuple[HeightGrid, list, list]:
+    """A face 0.3-0.6 m high along FACE_ALONG from FACE_START for 0.4 m, and with `corner`
+    a second one from FACE_START along -FACE_ACROSS for 0.3 m (a cabinet's corner, its
+    free side +FACE_ACROSS), hit in `static_scans` scans; and the centres of the cells
+    the first face crosses, and of those both cross."""
+    grid = HeightGrid(config)
+    heights = np.arange(0.3, 0.61, 0.03)
+    first = [FACE_START + s * FACE_ALONG for s in np.arange(0.0, 0.4, 0.002)]
+    second = [FACE_START - s * FACE_ACROSS for s in np.arange(0.002, 0.3, 0.002)]
+    face = np.array([p + [0.0, 0.0, z] for p in first + (second if corner else [])
+                     for z in heights])
+    for stamp in range(config.static_scans):
+        grid.insert(face, face + [0.0, 0.0, 0.01], float(stamp))  # vertical, no clearing
+    res = config.resolution
+
+    def centres(points):
+        return sorted({((np.floor(x / res) + 0.5) * res, (np.floor(y / res) + 0.5) * res)
+                       for x, y, _ in points})
+
+    return grid, centres(first), centres(face)
+
+
+def face_cells_kept(grid: HeightGrid, cells: list[tuple[float, float]]) -> int:
+    return sum(len(level_at(grid, x, y)) > 0 for x, y in cells)
+
+
+@pytest.mark.parametrize(("angle", "corner"), [(0.0, False), (4.0, False), (0.0, True)])
+def test_rays_grazing_a_slanted_face_leave_it_and_steep_rays_clear_it_once_gone(angle,
+                                                                                 corner):
+    """Issue 17 (a cabinet's end face eroded in `people_room(6)`, next to its corner):
+    rays running along a face, 6 mm off it on its free side, pass within `pass_radius`
+    of its cells' mean hits, which lie on the face; the face's direction, from the
+    neighbouring cells' mean hits, shows them grazing it (within `graze_angle`): they
+    leave every cell, also where the face meets another at a corner. Without the rule
+    (graze_angle 0) they clear the face. Rays across it at 60 deg, one every 1 cm along
+    it (so within 5 mm of each cell's mean hit), still clear it once it is gone."""
+    turn = np.radians(angle)
+    direction = np.cos(turn) * FACE_ALONG + np.sin(turn) * FACE_ACROSS
+    middle = FACE_START + 0.2 * FACE_ALONG + 0.006 * FACE_ACROSS + [0.0, 0.0, 0.45]
+    origin, end = middle - 1.0 * direction, middle + 3.0 * direction
+    for graze_angle, kept in ((0.0, False), (GridConfig().graze_angle, True)):
+        config = GridConfig(extent=20.0, bundle_run=0, graze_angle=graze_angle)
+        grid, first, cells = slanted_face(config, corner)
+        assert face_cells_kept(grid, cells) == len(cells) >= 10
+        for k in range(20):
+            grid.insert(end[None], origin[None], 100.0 + k)
+        assert (face_cells_kept(grid, cells) == len(cells)) == kept
+        assert kept or face_cells_kept(grid, first) < len(first) // 2
+    steep = np.radians(60.0)
+    across = np.cos(steep) * FACE_ALONG + np.sin(steep) * FACE_ACROSS
+    crossings = [FACE_START + s * FACE_ALONG + [0.0, 0.0, 0.45] for s in np.arange(0.0, 0.4, 0.01)]
+    origins = np.array([p - 1.0 * across for p in crossings])
+    ends = np.array([p + 3.0 * across for p in crossings])
+    for k in range(20):
+        grid.insert(ends, origins, 200.0 + k)
+    assert face_cells_kept(grid, first) == 0
+
+
+@pytest.mark.parametrize("angle", [-1.0, 90.0, float("nan"), "10"])
+def test_a_graze_angle_outside_0_to_90_degrees_is_refused(angle):
+    with pytest.raises(MapError, match="graze_angle"):
+        GridConfig(graze_angle=angle)
 
 
 def test_misses_per_scan_are_capped():
