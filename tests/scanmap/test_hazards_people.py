@@ -8,6 +8,7 @@ import math
 import pytest
 
 from benchmarks.bench_hazards import people_run
+from benchmarks.random_rooms import people_room
 from scanmap_driver.sim import Scene, builtin_scene
 
 SCANS = 10
@@ -44,3 +45,13 @@ def test_walls_never_erode_where_the_scene_lies_at_a_slant_to_the_cells(dx, dy, 
     scene = builtin_scene("people").moved(dx, dy, math.radians(yaw))
     measured = people_run(scene=scene)
     assert measured["wall_cells_eroded"] == 0
+
+
+def test_a_face_seen_from_nearly_in_its_plane_does_not_erode():
+    """people_room(6): a cabinet turned 16.7 deg; from scan 14 the robot stands almost in
+    the plane of its end face, and rays run along the face through the free part of the
+    cells it cuts, near their mean hits (11 wall cell-scans eroded by scan 20, 4 to FREE,
+    before GridConfig.graze_angle)."""
+    measured = people_run(20, scene=people_room(6))
+    assert measured["wall_cells_eroded"] == 0
+    assert measured["wall_cells_freed"] == 0
