@@ -286,7 +286,10 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     if not len(normals):
         return None
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
-    subset = coords[:, rng.integers(0, len(points), min(len(points), 4000))]
+    # C order: the gather alone leaves the rows strided (Fortran order), which the
+    # kernel reads several times slower than contiguous ones
+    subset = np.ascontiguousarray(coords[:, rng.integers(0, len(points),
+                                                          min(len(points), 4000))])
     support = nk.plane_support(subset, anchors, normals, params.plane_tolerance)
     best = int(np.argmax(support))
     normal, offset = normals[best], float(normals[best] @ anchors[best])
