@@ -345,6 +345,24 @@ NO_SAMPLES = np.zeros((0, 0, 2), np.float32)  # `interpolated`: no sample positi
 
 
 @njit(cache=True, nogil=True)
+def floor_samples(levels: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
+                  res: float) -> np.ndarray:
+    """`interpolated`'s samples (ny, nx, 2): the mean hit of each floor cell's lowest level,
+    x and y offsets from the cell's centre in cells (float32, as numpy divides them), NaN
+    off the floor. One pass reading the two fields, where numpy's strided slice of the
+    levels, division and masked assignment took ten times as long."""
+    ny, nx = nlev.shape
+    out = np.full((ny, nx, 2), np.nan, np.float32)
+    cell = np.float32(res)
+    for y in range(ny):
+        for x in range(nx):
+            if is_floor[y, x] and nlev[y, x] > 0:
+                out[y, x, 0] = levels[y, x, 0, gk.MX] / cell
+                out[y, x, 1] = levels[y, x, 0, gk.MY] / cell
+    return out
+
+
+@njit(cache=True, nogil=True)
 def _along(samples: np.ndarray, y: int, x: int, ux: float, uy: float, worst: float) -> float:
     """Where the sample of cell (y, x) lies along the unit direction (ux, uy), in cells
     from the cell's centre (`samples` (ny, nx, 2): x and y offsets in cells, NaN where not

@@ -635,9 +635,7 @@ def _floor_samples(layers: CellLayers, is_floor: np.ndarray) -> np.ndarray:
     x and y offsets from the cell's centre, in cells), NaN off the floor: the ends of an
     opening between the laser's lines, to measure it to the hits rather than to the
     cells' edges (the hits nearest the opening lie no farther out than their mean)."""
-    samples = layers.levels[:, :, 0, gk.MX:gk.MY + 1] / np.float32(layers.resolution)
-    samples[~(is_floor & (layers.nlev > 0))] = np.nan
-    return samples
+    return nk.floor_samples(layers.levels, layers.nlev, is_floor, layers.resolution)
 
 
 def _dips(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,
