@@ -298,14 +298,14 @@ def touching_floor(heights: np.ndarray, is_floor: np.ndarray, cells: np.ndarray,
     heights never are): one step of the floor's growth."""
     ny, nx = heights.shape
     out = np.zeros((ny, nx), np.bool_)
-    for dy in range(-1, 2):  # one neighbour direction at a time: contiguous inner loops
-        for dx in range(-1, 2):
-            if dy == 0 and dx == 0:
+    for y in range(ny):  # the neighbours of `cells` only: a step's faces are few
+        for x in range(nx):
+            if not cells[y, x]:
                 continue
-            for y in range(max(-dy, 0), min(ny - dy, ny)):
-                for x in range(max(-dx, 0), min(nx - dx, nx)):
-                    out[y, x] |= cells[y, x] and is_floor[y + dy, x + dx] \
-                        and abs(heights[y + dy, x + dx] - heights[y, x]) <= max_step
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    out[y, x] |= (yy != y or xx != x) and is_floor[yy, xx] \
+                        and abs(heights[yy, xx] - heights[y, x]) <= max_step
     return out
 
 
@@ -684,6 +684,28 @@ def _highest_bit(bits: np.uint64) -> int:
     while not (bits >> np.uint64(high)) & np.uint64(1):
         high -= 1
     return high
+
+
+@njit(cache=True, nogil=True)
+def footprint_cells(stood: np.ndarray, xs: np.ndarray, ys: np.ndarray, origin_x: float,
+                    origin_y: float, res: float, radius: float, reach: int) -> np.ndarray:
+    """Cells (ny, nx: the lengths of the cell centres `ys`, `xs`) whose square lies less
+    than `radius` from a place the robot stood (`stood` (M, 2) x, y), searched within
+    `reach` cells of the cell holding it (`floor._footprint_cells`)."""
+    ny, nx = ys.shape[0], xs.shape[0]
+    out = np.zeros((ny, nx), np.bool_)
+    half = 0.5 * res  # from a cell's centre to its square's nearest point
+    for i in range(stood.shape[0]):
+        x, y = stood[i, 0], stood[i, 1]
+        cx = int(np.floor((x - origin_x) / res))
+        cy = int(np.floor((y - origin_y) / res))
+        for row in range(max(cy - reach, 0), min(cy + reach + 1, ny)):
+            dy = max(abs(ys[row] - y) - half, 0.0)
+            for col in range(max(cx - reach, 0), min(cx + reach + 1, nx)):
+                dx = max(abs(xs[col] - x) - half, 0.0)
+                if dx * dx + dy * dy < radius * radius:
+                    out[row, col] = True
+    return out
 
 
 @njit(cache=True, nogil=True)

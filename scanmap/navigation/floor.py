@@ -655,21 +655,10 @@ def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
     """Cells the footprint (a disc of `radius` round where the sensor stood) overlaps: the
     robot's own body never touches unknown space where it stood, as queries measure it
     (to the cells' squares)."""
-    ny, nx = layers.shape
-    out = np.zeros((ny, nx), bool)
     xs, ys = layers.cell_centers()
-    reach = math.ceil(radius / layers.resolution)
-    half = 0.5 * layers.resolution  # from a cell's centre to its square's nearest point
-    for x, y in layers.stood:
-        cx = int(np.floor((x - layers.origin[0]) / layers.resolution))
-        cy = int(np.floor((y - layers.origin[1]) / layers.resolution))
-        x0, x1 = max(cx - reach, 0), min(cx + reach + 1, nx)
-        y0, y1 = max(cy - reach, 0), min(cy + reach + 1, ny)
-        if x0 < x1 and y0 < y1:
-            dx = np.maximum(np.abs(xs[x0:x1][None, :] - x) - half, 0.0)
-            dy = np.maximum(np.abs(ys[y0:y1][:, None] - y) - half, 0.0)
-            out[y0:y1, x0:x1] |= dx * dx + dy * dy < radius * radius
-    return out
+    return nk.footprint_cells(np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2), xs,
+                              ys, layers.origin[0], layers.origin[1], layers.resolution,
+                              radius, math.ceil(radius / layers.resolution))
 
 
 def _small_patches(mask: np.ndarray, size: int, margin: int = 1
