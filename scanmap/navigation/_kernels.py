@@ -572,17 +572,18 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
             # Plane-fit sums over all the cells within reach and a step, over those above
             # (dz > 0) and over those level with it (dz = 0: on both sides); below = all -
             # above (the level ones add nothing to the height sums)
+            # (above: weighted 1 or 0, no branch, as the signs of a noisy floor's heights
+            # are a coin toss to the branch predictor; level is rare but for the cell)
             every, above, level = none, none, none
             for yy in range(max(y - radius, 0), min(y + radius + 1, ny)):
                 for xx in range(max(x - radius, 0), min(x + radius + 1, nx)):
                     dz = heights[yy, xx] - hc
                     if abs(dz) <= max_step:  # False for NaN
                         px, py = (xx - x) * res, (yy - y) * res
-                        every = _with_cell(every, px, py, dz)
-                        if dz > 0.0:
-                            above = _with_cell(above, px, py, dz)
-                        elif dz == 0.0:
-                            level = _with_cell(level, px, py, dz)
+                        every = _with_cell(every, px, py, dz, 1.0)
+                        above = _with_cell(above, px, py, dz, 1.0 if dz > 0.0 else 0.0)
+                        if dz == 0.0:
+                            level = _with_cell(level, px, py, dz, 1.0)
             slope = max(_plane_slope(every, res), _plane_slope(_sum(above, level, 1.0), res),
                         _plane_slope(_sum(every, above, -1.0), res))
             if slope > -np.inf:  # a fit on either side or over both
@@ -591,11 +592,13 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _with_cell(s: tuple, px: float, py: float, dz: float) -> tuple:
+def _with_cell(s: tuple, px: float, py: float, dz: float, weight: float) -> tuple:
     """Plane-fit sums `s` (n, sx, sy, sz, sxx, sxy, syy, sxz, syz: offsets x, y in m from
-    the cell, heights z above it) with one more cell."""
-    return (s[0] + 1.0, s[1] + px, s[2] + py, s[3] + dz, s[4] + px * px, s[5] + px * py,
-            s[6] + py * py, s[7] + px * dz, s[8] + py * dz)
+    the cell, heights z above it) with one more cell if `weight` is 1, the same sums if
+    it is 0 (adding a zero: the sums start at +0 and are finite, so never -0)."""
+    return (s[0] + weight, s[1] + weight * px, s[2] + weight * py, s[3] + weight * dz,
+            s[4] + weight * (px * px), s[5] + weight * (px * py), s[6] + weight * (py * py),
+            s[7] + weight * (px * dz), s[8] + weight * (py * dz))
 
 
 @njit(cache=True, nogil=True, inline="always")
