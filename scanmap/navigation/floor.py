@@ -455,11 +455,11 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                          round(params.max_hole / res), robot.step_height)
     if drop.any():  # through the rim's shadow: no hit there or next to it but the drop's
         # own, not between floor samples (a gap in the floor, the shadow of an object)
-        shadow = ~morphology.dilate(is_floor | stood | holes | (layers.nlev > 0) & ~drop) \
-            & (layers.nlev == 0)
-        shadow &= ~nk.interpolated(is_floor | stood | holes, (layers.nlev > 0) | drop,
-                                   floor_height, round(params.max_hole / res),
-                                   robot.step_height, False, nk.NO_SAMPLES)
+        known = is_floor | stood | holes
+        shadow = ~morphology.dilate(known | (layers.nlev > 0) & ~drop) & (layers.nlev == 0)
+        hole = round(params.max_hole / res)
+        shadow &= ~nk.interpolated(known, (layers.nlev > 0) | drop | _beyond_spans(known, hole),
+                                   floor_height, hole, robot.step_height, False, nk.NO_SAMPLES)
         # across the scanner's view, no farther from where the robot stood than the cells
         # that show it (and a cell: beyond a hole's far wall the floor is lit, its unlit
         # cells are gaps between the laser's lines), nearer only across the rim's shadow
@@ -470,7 +470,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there)
         rim = (layers.nlev == 0) & ~nk.interpolated(
-            is_floor | stood | holes, (layers.nlev > 0) | drop, floor_height, 2,
+            known, (layers.nlev > 0) | drop | _beyond_spans(known, 2), floor_height, 2,
             robot.step_height, False, nk.NO_SAMPLES)
         drop |= morphology.dilate_in_range(spread & ~seeds, rim, ranges, near, ranges, 1)
     holes &= ~drop
@@ -573,6 +573,15 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
         if near[rows, cols][patch].any() and not near_drop[rows, cols][patch].any():
             out[rows, cols] |= patch
     return out
+
+
+def _beyond_spans(known: np.ndarray, size: int) -> np.ndarray:
+    """Cells more than `size` + 2 cells (along rows, columns or diagonals) from every cell
+    of `known`: `interpolated` (size, no samples) bridges no span through them, nor through
+    a cell next to them (a span's cells lie within size + 1 of its ends). Passed to it as
+    hits they are skipped, and its result is the same (the unobserved space round a
+    window's drop-offs: half its cells in the hazards scene)."""
+    return ~morphology.max_filter(known, 2 * size + 5)
 
 
 def _ranges(layers: CellLayers) -> np.ndarray:

@@ -336,6 +336,20 @@ def test_interpolation_matches_its_numpy_reference(seed):
                                                  samples)).all()
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_cells_beyond_every_span_passed_as_hits_change_no_interpolation(seed):
+    rng = np.random.default_rng(seed)
+    known = rng.random((40, 50)) < rng.uniform(0.005, 0.1)
+    hit = (rng.random((40, 50)) < 0.2) & ~known
+    heights = rng.normal(0.0, 0.03, (40, 50)).astype(np.float32)
+    for size in range(7):
+        beyond = floor_module._beyond_spans(known, size)
+        for unlit in (False, True):
+            assert np.array_equal(
+                nk.interpolated(known, hit | beyond, heights, size, STEP, unlit, nk.NO_SAMPLES),
+                nk.interpolated(known, hit, heights, size, STEP, unlit, nk.NO_SAMPLES))
+
+
 @pytest.mark.parametrize(("apart", "a", "b", "bridged"), [
     (6, 0.4, -0.4, True),     # samples 0.4 cells in from each end: 5.2 cells open
     (6, -0.4, 0.4, False),    # 0.4 cells out: 6.8
