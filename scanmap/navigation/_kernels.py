@@ -673,11 +673,9 @@ def _widen(mask: np.uint64) -> np.uint64:
 
 @njit(cache=True, nogil=True, inline="always")
 def _lowest_bit(bits: np.uint64) -> int:
-    """Index of the lowest set bit of a non-zero mask."""
-    low = 0
-    while not (bits >> np.uint64(low)) & np.uint64(1):
-        low += 1
-    return low
+    """Index of the lowest set bit of a non-zero mask: the count of the bits below it (a
+    loop over the bits took up to 64 steps; the seen masks start tens of bins up)."""
+    return _popcount((bits & (~bits + np.uint64(1))) - np.uint64(1))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -905,16 +903,14 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
     for y in range(ny):
         for x in range(nx):
             widened[y, x] = _widen(occupied[y, x])
+    beside = pooled_bits(widened, 1)  # over the 3 x 3 square, by rows then columns
     for y in range(ny):
         for x in range(nx):
             f = floor_height[y, x]
             if state[y, x] == OBSTACLE or np.isnan(f):
                 continue
             band = gk.height_mask(f + step, f + height - 1e-6, z_min, mask_dz) & observable
-            suspect = overhang[y, x]
-            for yy in range(max(y - 1, 0), min(y + 2, ny)):
-                for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                    suspect |= widened[yy, xx]
+            suspect = overhang[y, x] | beside[y, x]
             covered[y, x] = unseen[y, x] & overhang[y, x] != 0
             if _popcount(band & counted[y, x]) >= max(coverage * _popcount(band), 1.0) \
                     and band & seen[y, x] != 0 and unseen[y, x] & suspect == 0 \
