@@ -286,10 +286,9 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     if not len(normals):
         return None
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
-    # C order: the gather alone leaves the rows strided (Fortran order), which the
-    # kernel reads several times slower than contiguous ones
-    subset = np.ascontiguousarray(coords[:, rng.integers(0, len(points),
-                                                          min(len(points), 4000))])
+    # take: C order (coords[:, idx] is in Fortran order, its rows strided, which the kernel
+    # reads several times slower than contiguous ones)
+    subset = coords.take(rng.integers(0, len(points), min(len(points), 4000)), axis=1)
     support = nk.plane_support(subset, anchors, normals, params.plane_tolerance)
     best = int(np.argmax(support))
     normal, offset = normals[best], float(normals[best] @ anchors[best])
@@ -480,7 +479,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     probed = nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
         <= floor_height + params.floor_probe
     bare = ~morphology.max_filter(layers.nlev > 0, 3)
-    bottom = layers.levels[:, :, 0, gk.LO]  # of each cell's lowest level
+    bottom = np.ascontiguousarray(layers.levels[:, :, 0, gk.LO])  # of each lowest level
     dips = _dips(layers.nlev, bottom, is_floor, params.plane_tolerance)
     holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
                        floor_height, drop, dips, round(params.max_hole / res),
@@ -610,9 +609,8 @@ def _below_model(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
     """Cells with hits, not floor, whose lowest level lies wholly more than `tolerance`
     below `floor` (the lowest floor around them, or their own): a surface below the floor
     model (a hole's far wall, seen only at its top, less than a step down)."""
-    with np.errstate(invalid="ignore"):
-        return (layers.nlev > 0) & ~is_floor \
-            & (layers.levels[:, :, 0, gk.HI] < floor - tolerance)
+    return nk.lowest_level_below(layers.levels, layers.nlev, is_floor, floor - tolerance,
+                                 gk.HI)
 
 
 def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
@@ -621,9 +619,7 @@ def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
     `floor` (as for `_below_model`): the far rim of a hole whose wall, seen only at its
     top, fell into the cell of the floor beyond it (one level from the wall's hits up to
     the floor's: not wholly below the floor, so not `_below_model`, yet a sign of a hole)."""
-    with np.errstate(invalid="ignore"):
-        return (layers.nlev > 0) & ~is_floor \
-            & (layers.levels[:, :, 0, gk.LO] < floor - depth)
+    return nk.lowest_level_below(layers.levels, layers.nlev, is_floor, floor - depth, gk.LO)
 
 
 def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
@@ -636,7 +632,7 @@ def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     labels, boxes, ok = _small_patches(bare, size, margin=2)
     gaps = nk.floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
                          floor_height, dips, step)
-    return gaps[labels]
+    return gaps.take(labels)
 
 
 def _floor_samples(layers: CellLayers, is_floor: np.ndarray) -> np.ndarray:
@@ -690,7 +686,7 @@ def _pinholes(state: np.ndarray, nlev: np.ndarray, size: int) -> np.ndarray:
     patch = (state == UNKNOWN) & (nlev == 0)
     labels, _, ok = _small_patches(patch, size)
     ok[labels[morphology.dilate((state != FREE) & ~patch) & patch]] = False
-    return ok[labels]
+    return ok.take(labels)
 
 
 def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarray,
@@ -707,4 +703,4 @@ def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarra
     # cells off the floor, so every neighbour outside it is floor)
     low, high = nk.ring_heights(labels, count, is_floor, floor_height)
     ok &= high - low <= step
-    return ok[labels]
+    return ok.take(labels)

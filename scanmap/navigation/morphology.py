@@ -158,7 +158,7 @@ def large_components(mask: np.ndarray, min_cells: int) -> np.ndarray:
     labels, stats = _components(mask)
     keep = stats[:, cv2.CC_STAT_AREA] >= min_cells
     keep[0] = False
-    return keep[labels]
+    return keep.take(labels)
 
 
 def box_slices(box: np.ndarray) -> tuple[slice, slice]:
