@@ -491,15 +491,16 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     informative = (layers.nlev > 0) | drop
     # A cell farther than half a span from every known or hit cell lies on no such span:
     # passed to `interpolated` as a hit, it is skipped (the result is the same)
-    apart = distance_transform(known_floor | informative)[0]
-    seen_floor = nk.interpolated(known_floor, informative | (apart > 1.5), floor_height, 2,
+    observed = known_floor | informative
+    lone = ~morphology.within_distance(observed, 1.5)
+    seen_floor = nk.interpolated(known_floor, informative | lone, floor_height, 2,
                                  robot.step_height, True, nk.NO_SAMPLES)
     drop |= _sunk(bare & ~holes & ~is_floor & ~stood & ~assumed, layers, is_floor, lowest,
                   drop, round(params.max_hole / res), params.plane_tolerance)
     gap = round(params.max_gap / res)
     lines = np.zeros((ny, nx), bool)
     if gap > 2:
-        wide = apart > 0.5 * (gap + 1)  # unobserved more than max_gap across
+        wide = ~morphology.within_distance(observed, 0.5 * (gap + 1))  # unobserved > max_gap
         with np.errstate(invalid="ignore"):  # the feet of surfaces standing on the floor
             foot = (layers.nlev > 0) & ~known_floor \
                 & (np.abs(bottom - floor_height) <= robot.step_height)
@@ -514,10 +515,10 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
             # wall, up to its width from a span along its near rim: the signs reach that
             # far, measured against each cell's own floor (the lowest around it may be a
             # far wall's top taken for floor)
-            lines &= distance_transform(drop | dips | _below_model(
+            lines &= ~morphology.within_distance(drop | dips | _below_model(
                 layers, is_floor, floor_height, params.plane_tolerance) | _reaching_below(
-                layers, is_floor, floor_height, robot.step_height))[0] > gap + 2
-            lines &= ~morphology.dilate(wide, gap, within=~(known_floor | informative))
+                layers, is_floor, floor_height, robot.step_height), gap + 2)
+            lines &= ~morphology.dilate(wide, gap, within=~observed)
         seen_floor |= lines
     unlit = (probed & bare) | steep | bridges
     unlit &= ~is_floor & ~stood & ~assumed & ~holes & ~lines

@@ -12,6 +12,9 @@ command's start (importing scipy.ndimage takes 0.2 s, with scipy.special that it
 
 from __future__ import annotations
 
+import functools
+import math
+
 import cv2
 import numpy as np
 from numba import njit
@@ -95,6 +98,25 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
                 elif depth[n] == d + 1 and not seeds[yy, xx]:  # not popped yet
                     lows[n], highs[n] = min(lows[n], lo), max(highs[n], hi)
     return out
+
+
+def within_distance(mask: np.ndarray, distance: float) -> np.ndarray:
+    """Cells whose centre lies within `distance` cells of the centre of a cell of `mask`:
+    `distance_transform(mask)[0] <= distance` as that float32 field compares, by one
+    dilation with the disc of the offsets within it (a fifth of the transform's time for
+    a disc of radius 3)."""
+    return cv2.dilate(np.ascontiguousarray(mask, dtype=np.uint8),
+                      _disc(float(distance))).astype(bool)
+
+
+@functools.lru_cache(maxsize=16)
+def _disc(distance: float) -> np.ndarray:
+    """The offsets (dy, dx) whose length, rounded to float32 as the distance field stores
+    it, is at most `distance` in float32 (as numpy compares the field with it)."""
+    limit = np.float32(distance)
+    reach = max(math.floor(limit), 0)  # beyond, every length exceeds the limit
+    dy, dx = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+    return (np.sqrt(dy * dy + dx * dx).astype(np.float32) <= limit).astype(np.uint8)
 
 
 def max_filter(mask: np.ndarray, size: int) -> np.ndarray:

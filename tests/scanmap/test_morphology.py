@@ -9,6 +9,7 @@ from hypothesis.extra.numpy import arrays
 from scipy import ndimage
 
 from scanmap.navigation import morphology
+from scanmap.navigation.distance_field import distance_transform
 
 SQUARE = np.ones((3, 3), bool)
 masks = arrays(np.bool_, st.tuples(st.integers(1, 40), st.integers(1, 40)))
@@ -83,3 +84,11 @@ def test_empty_and_full_masks():
     assert components(empty)[1] == 0
     labels, count, boxes = components(full)
     assert count == 1 and (labels == 1).all() and boxes == [(slice(0, 5), slice(0, 7))]
+
+
+@settings(max_examples=60, deadline=None)
+@given(mask=masks, distance=st.sampled_from([0.0, 0.5, 1.0, 1.4, 1.5, 2.0, 2.3, 3.5, 5.0, 8,
+                                              8.06, 9.9999999]))
+def test_within_distance_is_the_distance_fields_comparison(mask, distance):
+    assert np.array_equal(morphology.within_distance(mask, distance),
+                          distance_transform(mask)[0] <= distance)
