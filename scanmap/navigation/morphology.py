@@ -22,14 +22,19 @@ from numba import njit
 _SQUARE3 = np.ones((3, 3), np.uint8)
 
 
+def _bytes(mask: np.ndarray) -> np.ndarray:
+    """`mask` (its truth) as OpenCV takes it: a C-contiguous uint8 array of 0 and 1, a view
+    of a contiguous bool mask (no copy; OpenCV's 0 and 1 back are viewed as bool alike)."""
+    return np.ascontiguousarray(mask, dtype=np.bool_).view(np.uint8)
+
+
 def dilate(mask: np.ndarray, iterations: int = 1, within: np.ndarray | None = None
            ) -> np.ndarray:
     """`mask` dilated `iterations` times by the 3 x 3 square (nothing beyond the array's
     edge). With `within`, each step changes only cells of `within`; the others keep their
     value in `mask` (ndimage.binary_dilation's `mask`): `geodesic_dilate`."""
     if within is None:
-        source = np.ascontiguousarray(mask, dtype=np.uint8)
-        return cv2.dilate(source, _SQUARE3, iterations=max(iterations, 0)).astype(bool)
+        return cv2.dilate(_bytes(mask), _SQUARE3, iterations=max(iterations, 0)).view(np.bool_)
     return geodesic_dilate(np.ascontiguousarray(mask, dtype=np.bool_),
                            np.ascontiguousarray(within, dtype=np.bool_), max(iterations, 0))
 
@@ -40,7 +45,7 @@ def geodesic_dilate(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndar
     `within` (ten times a breadth-first search's speed where the mask covers most of the
     grid, as the unobserved space of a segmentation window does)."""
     grown = np.asarray(mask, dtype=np.bool_).astype(np.uint8)  # a copy, as for 0 steps
-    inside = np.ascontiguousarray(within, dtype=np.bool_).view(np.uint8)
+    inside = _bytes(within)
     for _ in range(steps):
         grown = grown | (cv2.dilate(grown, _SQUARE3) & inside)
     return grown.view(np.bool_)
@@ -105,8 +110,7 @@ def within_distance(mask: np.ndarray, distance: float) -> np.ndarray:
     `distance_transform(mask)[0] <= distance` as that float32 field compares, by one
     dilation with the disc of the offsets within it (a fifth of the transform's time for
     a disc of radius 3)."""
-    return cv2.dilate(np.ascontiguousarray(mask, dtype=np.uint8),
-                      _disc(float(distance))).astype(bool)
+    return cv2.dilate(_bytes(mask), _disc(float(distance))).view(np.bool_)
 
 
 @functools.lru_cache(maxsize=16)
@@ -121,8 +125,7 @@ def _disc(distance: float) -> np.ndarray:
 
 def max_filter(mask: np.ndarray, size: int) -> np.ndarray:
     """True where any cell of the `size` x `size` square centred there is (odd size)."""
-    return cv2.dilate(np.ascontiguousarray(mask, dtype=np.uint8),
-                      np.ones((size, size), np.uint8)).astype(bool)
+    return cv2.dilate(_bytes(mask), np.ones((size, size), np.uint8)).view(np.bool_)
 
 
 def min_filter(values: np.ndarray, size: int) -> np.ndarray:
@@ -136,8 +139,7 @@ def _components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """OpenCV's 8-connected labels (int32, 0 off the mask) and per-label statistics (as
     connectedComponentsWithStats' rows: x, y, width, height, area; row 0 zero), counted in
     one pass over the labels (OpenCV's own statistics cost four times its labelling here)."""
-    count, labels = cv2.connectedComponents(np.ascontiguousarray(mask, dtype=np.uint8),
-                                            connectivity=8, ltype=cv2.CV_32S)
+    count, labels = cv2.connectedComponents(_bytes(mask), connectivity=8, ltype=cv2.CV_32S)
     return labels, _label_stats(labels, count)
 
 
