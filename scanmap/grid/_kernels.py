@@ -482,6 +482,19 @@ def _beside_static(lev_f, lev_n, li, path, fp, static_scans) -> bool:
                              path[3]) > fp[FP_PASS_RADIUS]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _cell_offset(tile_index, ix, iy, shift) -> int:
+    """Flat cell offset of cell (ix, iy), or -1 outside the allocated tiles."""
+    ty, tx = iy >> shift, ix >> shift
+    if ix < 0 or iy < 0 or ty >= tile_index.shape[0] or tx >= tile_index.shape[1]:
+        return -1
+    slot = tile_index[ty, tx]
+    if slot < 0:
+        return -1
+    mask = (1 << shift) - 1
+    return (np.int64(slot) << (2 * shift)) | ((iy & mask) << shift) | (ix & mask)
+
+
 @njit(cache=True, nogil=True)
 def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
                    levels, static_scans) -> bool:
@@ -504,21 +517,14 @@ def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp,
     if length == 0.0 or graze <= 0.0:
         return False
     ux, uy = dx / length, dy / length
-    mask = (1 << shift) - 1
-    ty_max, tx_max = tile_index.shape
     mx, my = lev_f[li, MX], lev_f[li, MY]
     near2 = 0.25 * res * res
     along, left, right, found = False, False, False, 0
     for ny in range(-1, 2):
         for nx in range(-1, 2):
-            jx, jy = ix + nx, iy + ny
-            if (nx == 0 and ny == 0) or jx < 0 or jy < 0 or jy >> shift >= ty_max \
-                    or jx >> shift >= tx_max:
+            joff = _cell_offset(tile_index, ix + nx, iy + ny, shift)
+            if (nx == 0 and ny == 0) or joff < 0:
                 continue
-            slot = np.int64(tile_index[jy >> shift, jx >> shift])
-            if slot < 0:
-                continue
-            joff = (slot << (2 * shift)) | ((jy & mask) << shift) | (jx & mask)
             for lj in range(joff * levels, joff * levels + np.int64(nlev[joff])):
                 if np.int64(lev_n[lj, SCANS]) >= static_scans \
                         and lev_f[lj, LO] - tol <= zb and za <= lev_f[lj, HI] + tol:
@@ -730,17 +736,11 @@ def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
                    out_seen: np.ndarray, out_scan: np.ndarray) -> None:
     """Copy cells [iy0, iy0+ny) x [ix0, ix0+nx) into dense arrays; absent tiles stay empty."""
     ny, nx = out_nlev.shape
-    mask = (1 << shift) - 1
-    ty_max, tx_max = tile_index.shape
     for y in range(ny):
-        iy = iy0 + y
         for x in range(nx):
-            ix = ix0 + x
-            ty, tx = iy >> shift, ix >> shift
-            if iy < 0 or ix < 0 or ty >= ty_max or tx >= tx_max or tile_index[ty, tx] < 0:
+            off = _cell_offset(tile_index, ix0 + x, iy0 + y, shift)
+            if off < 0:
                 continue
-            off = (np.int64(tile_index[ty, tx]) << (2 * shift)) | ((iy & mask) << shift) \
-                | (ix & mask)
             n = nlev[off]
             out_nlev[y, x] = n
             out_seen[y, x] = cells[off, SEEN]

@@ -51,6 +51,7 @@ from scanmap.grid._kernels import (
     SCANS,
     SEEN,
     STAMP,
+    _cell_offset,
     _level_for,
     _merge_grown,
     _nearest_level,
@@ -61,19 +62,6 @@ from scanmap.grid._kernels import (
 from scanmap.grid.packed import P_SCAN, P_SEEN, P_VISITS
 
 _U32_MAX = 4294967295.0
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _cell_offset(tile_index, ix, iy, shift) -> int:
-    """Flat cell offset of cell (ix, iy), or -1 outside the allocated tiles."""
-    ty, tx = iy >> shift, ix >> shift
-    if ix < 0 or iy < 0 or ty >= tile_index.shape[0] or tx >= tile_index.shape[1]:
-        return -1
-    slot = tile_index[ty, tx]
-    if slot < 0:
-        return -1
-    mask = (1 << shift) - 1
-    return (np.int64(slot) << (2 * shift)) | ((iy & mask) << shift) | (ix & mask)
 
 
 @njit(cache=True, nogil=True, inline="always")
