@@ -1,5 +1,6 @@
-"""The see-through truth of the people benchmark (`band_crossed`): the band's height bins
-a ray passes through in each cell, against the closed form of a straight ray."""
+"""The see-through truth of the people benchmark: the band's height bins a ray passes
+through in each cell (`band_crossed`), against the closed form of a straight ray, and
+those the map's levels hold (`band_held`), against interval overlap."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from benchmarks.bench_hazards import BAND_BIN, ROBOT, band_crossed, share_of_bits
+from benchmarks.bench_hazards import BAND_BIN, ROBOT, band_crossed, band_held, share_of_bits
+from scanmap.grid.height_grid import CellLayers
 from scanmap.navigation.floor import Segmentation
 
 RES = 0.05
@@ -70,3 +72,27 @@ def test_a_horizontal_ray_above_the_band_crosses_nothing_and_shares_are_counted(
     bins = round((ROBOT.height - ROBOT.step_height) / BAND_BIN)
     share = share_of_bits(np.array([0, 1, (1 << bins) - 1], np.uint64), bins)
     np.testing.assert_allclose(share, [0.0, 1.0 / bins, 1.0])
+
+
+@settings(max_examples=60, deadline=None)
+@given(spans=st.lists(st.tuples(st.floats(-0.3, 1.3), st.floats(0.0, 0.6)), min_size=3,
+                      max_size=3),
+       used=st.integers(0, 3))
+def test_the_bins_a_cell_holds_are_those_its_levels_in_use_overlap(spans, used):
+    """A level [lo, hi] holds bin b when it overlaps [step + b * BAND_BIN, step + (b + 1) *
+    BAND_BIN); levels past nlev and heights outside the band hold nothing."""
+    levels = np.zeros((1, 1, 3, 5), np.float32)
+    for k, (lo, thickness) in enumerate(spans):
+        levels[0, 0, k, :2] = lo, lo + thickness
+    layers = CellLayers(origin=(0.0, 0.0), resolution=RES, z_min=-0.35, mask_dz=0.025,
+                        levels=levels, counts=np.zeros((1, 1, 3, 2), np.uint32),
+                        nlev=np.array([[used]], np.uint8), seen=np.zeros((1, 1), np.uint64),
+                        updated=np.zeros((1, 1)))
+    bins = round((ROBOT.height - ROBOT.step_height) / BAND_BIN)
+    want = 0
+    for lo, hi in levels[0, 0, :used, :2].astype(float):
+        for b in range(bins):
+            bottom = ROBOT.step_height + b * BAND_BIN
+            if lo < bottom + BAND_BIN and hi >= bottom:
+                want |= 1 << b
+    assert int(band_held(layers)[0, 0]) == want
