@@ -17,11 +17,15 @@ slope). Rows:
   them; the gate: those more than one cell inside the drop-off (a cell across the edge
   holds floor hits on its rim half, and the edge is placed within one cell).
 * drop-off edge error: for every DROP_OFF cell next to a FREE cell (the edge a robot
-  drives up to), its distance (cells) to the nearest true drop-off cell; the maximum
-  and the share within one cell.
-* false drop-offs: DROP_OFF cells on true floor more than a cell (1.5 cells) from any
-  true drop-off, after the worst scan: on `hazards`, over the placements and over the
-  random rooms (a robot that sees a drop-off where there is none will not drive there).
+  drives up to), the distance (cells) from its centre to the nearest true drop-off, on
+  a truth raster of EDGE_TRUTH cells (the map's cells' own raster places the true edge
+  only to within half a cell: a cell diagonal to a drop-off cell measured 1.41 where
+  the drop-off's corner lies 0.85 cells from its centre); the maximum and the share
+  within one cell.
+* false drop-offs: DROP_OFF cells on true floor more than 1.5 cells from any true
+  drop-off (on the same raster), after the worst scan: on `hazards`, over the placements
+  and over the random rooms (a robot that sees a drop-off where there is none will not
+  drive there).
 * ramp F1: floor (traversable surface) against truth over the observed cells (any hit)
   of the sloped floor regions, a ramp within max_slope and one steeper.
 * placed anew: the same scene shifted within a cell and turned (`Scene.moved`), so its
@@ -100,6 +104,7 @@ PLACEMENTS = 8  # placements of the hazards scene on the cells (`placed_run`)
 RANDOM_ROOMS = 12  # random hazard rooms measured (`random_run`)
 PEOPLE_ROOMS = 6  # rooms with people measured (`people_rooms_run`)
 CELL = GridConfig().resolution  # m
+EDGE_TRUTH = 0.01  # m, cells of the truth raster the drop-off edge is measured on
 
 
 @dataclass(frozen=True)
@@ -157,8 +162,8 @@ def traversable(seg: Segmentation) -> np.ndarray:
 def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
                   ) -> dict[str, float]:
     """Drop-off cells reported free (strict and more than a cell inside) and the edge
-    error (`evaluation.drop_off_errors`, the map at the true poses: `truth` is the
-    raster's class at each of `seg`'s cells)."""
+    error (`evaluation.drop_off_errors` on `raster`, of any resolution, the map at the
+    true poses); `truth` is the true class at each of `seg`'s cells."""
     errors = drop_off_errors(seg, raster, np.eye(4)) or {  # a scene without drop-offs
         "free_cells_on_drop_offs": 0, "free_cells_inside_drop_offs": 0,
         "drop_off_edge_cells": 0, "drop_off_edge_error_cells": 0.0,
@@ -199,12 +204,12 @@ def hazard_run(scans: int | None = None, seed: int = 0,
     after its last scan, the worst counts of free and of false drop-off cells, the worst
     edge error and the least share of the edge within one cell over all scans."""
     scene = scene or builtin_scene("hazards")
-    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height,
-                          max_slope=PARAMS.max_slope)
+    raster, fine = (truth_raster(scene, resolution, ROBOT.step_height, ROBOT.height,
+                                 max_slope=PARAMS.max_slope) for resolution in (CELL, EDGE_TRUTH))
     worst, edge_worst, within_worst, false_worst = 0, 0.0, 1.0, 0
     for step in mapped(scene, scans, seed):
         truth = truth_classes(step.seg, raster)
-        measures = drop_measures(step.seg, truth, raster)
+        measures = drop_measures(step.seg, truth, fine)
         worst = max(worst, measures["drop_free"])
         false_worst = max(false_worst, measures["drop_false"])
         edge_worst = max(edge_worst, measures["edge_error_cells"])
