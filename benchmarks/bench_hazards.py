@@ -98,6 +98,7 @@ MARGIN = 0.5  # m of window around the scene's bounds
 WINDOW = 8.0  # m, side of the window segmented per scan for the timing
 SEE_THROUGH = 2.0  # m from the robot within which a person's former cells are checked
 BAND_BIN = 0.025  # m, height bins of the robot's band for the see-through truth
+BAND_BINS = round((ROBOT.height - ROBOT.step_height) / BAND_BIN)  # bins in the band
 RAY_STEP = 0.01  # m, sampling step along the true rays for the see-through truth
 SEE_THROUGH_SHARE = 0.95  # share of the band's bins crossed: the cell was seen through
 PLACEMENTS = 8  # placements of the hazards scene on the cells (`placed_run`)
@@ -233,7 +234,6 @@ def band_crossed(points: np.ndarray, origins: np.ndarray, seg: Segmentation) -> 
     rays from `origins` to `points` pass through in each cell of `seg`, sampled every
     RAY_STEP along them up to, not at, the hit."""
     ny, nx = seg.shape
-    bins = round((ROBOT.height - ROBOT.step_height) / BAND_BIN)
     out = np.zeros(ny * nx, np.uint64)
     delta = points - origins
     samples = np.maximum((np.hypot(delta[:, 0], delta[:, 1]) / RAY_STEP).astype(int), 1)
@@ -245,7 +245,7 @@ def band_crossed(points: np.ndarray, origins: np.ndarray, seg: Segmentation) -> 
         col = np.floor((p[:, 0] - seg.origin[0]) / seg.resolution).astype(np.int64)
         row = np.floor((p[:, 1] - seg.origin[1]) / seg.resolution).astype(np.int64)
         level = np.floor((p[:, 2] - ROBOT.step_height) / BAND_BIN).astype(np.int64)
-        ok = (row >= 0) & (row < ny) & (col >= 0) & (col < nx) & (level >= 0) & (level < bins)
+        ok = (row >= 0) & (row < ny) & (col >= 0) & (col < nx) & (level >= 0) & (level < BAND_BINS)
         np.bitwise_or.at(out, row[ok] * nx + col[ok],
                          np.left_shift(np.uint64(1), level[ok].astype(np.uint64)))
     return out.reshape(ny, nx)
@@ -254,16 +254,14 @@ def band_crossed(points: np.ndarray, origins: np.ndarray, seg: Segmentation) -> 
 def band_held(layers: CellLayers) -> np.ndarray:
     """(ny, nx) uint64: the band's height bins (as `band_crossed`) that the map's levels
     overlap in each cell: where it holds something the robot would hit."""
-    bins = round((ROBOT.height - ROBOT.step_height) / BAND_BIN)
     in_use = np.arange(layers.levels.shape[2]) < layers.nlev[..., None]
     lo, hi = (np.floor((layers.levels[..., i].astype(np.float64) - ROBOT.step_height)
                        / BAND_BIN).astype(np.int64) for i in (0, 1))
-    lo, hi = np.clip(lo, 0, bins), np.clip(hi, -1, bins - 1)
-    out = np.zeros(layers.shape, np.uint64)
-    for bit in range(bins):
-        held = in_use & (lo <= bit) & (bit <= hi)
-        out |= np.where(held.any(axis=2), np.uint64(1) << np.uint64(bit), np.uint64(0))
-    return out
+    lo, top = np.clip(lo, 0, BAND_BINS).astype(np.uint64), np.clip(hi + 1, 0, BAND_BINS)
+    one = np.uint64(1)
+    spans = np.where(in_use & (top > lo), (one << top.astype(np.uint64)) - (one << lo),
+                     np.uint64(0))  # bits lo .. top - 1 of each level
+    return np.bitwise_or.reduce(spans, axis=2)
 
 
 def share_of_bits(mask: np.ndarray, bits: int) -> np.ndarray:
@@ -342,7 +340,6 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
     grazes = replace(raster, classes=mixed_cells(scene, raster).astype(np.uint8))
     ghosts, checked, eroded, freed, strict, recall = 0, 0, 0, 0, 0, {}
     seen_ghosts, seen_checked = 0, 0
-    bins = round((ROBOT.height - ROBOT.step_height) / BAND_BIN)
     for label, run in (("people", scene), ("empty", replace(scene, people=()))):
         once = None
         for step in mapped(run, count, seed):
@@ -369,7 +366,7 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
                     gone &= (truth == TRUE_FLOOR) & solid & near(step)
                     checked += int(gone.sum())
                     ghosts += int((gone & obstacle).sum())
-                    gone &= share_of_bits(crossed_since, bins) >= SEE_THROUGH_SHARE
+                    gone &= share_of_bits(crossed_since, BAND_BINS) >= SEE_THROUGH_SHARE
                     seen_checked += int(gone.sum())
                     held = band_held(step.layers)
                     seen_ghosts += int((gone & obstacle & (crossed_since & held == held)).sum())
