@@ -47,8 +47,8 @@ Log-odds are clamped at `l_max`, so an object seen for thousands of scans still 
 within ceil(l_max / (max_misses * l_miss)) scans once it has gone.
 
 Memory layout (flat, for speed): cell `off = (slot << 2s) | (row << s) | col` with
-s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, bundle key,
-bundle mask[, scans whose rays reached it])`, where bit b of a mask covers
+s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, last unlit
+scan id, bundle key, bundle mask[, scans whose rays reached it])`, where bit b of a mask covers
 z_min + [b, b+1) * mask_dz; `nlev[off]` levels in use; level k of the cell is record
 `off * K + k` of lev_f (lo, hi, log-odds, mean hit x, y offset from the cell centre,
 this scan's hit range), lev_n (hits, passes, scan stamp, scans that hit it) and
@@ -68,11 +68,12 @@ N_FLOAT_FIELDS = 7
 HITS, PASSES, STAMP, SCANS = 0, 1, 2, 3
 N_INT_FIELDS = 4
 HIT_FLAG = 0x80  # lev_flag bit: hit in scan `stamp`; the low bits count its misses
-# Fields of cells[off]: observed-height mask, last scan id, and the ray-bundle scratch;
-# a grid that counts visits (a submap) has a fifth, the scans whose rays reached the
-# cell (not saved: how strongly a submap saw it free).
-SEEN, SCAN, VKEY, VMASK, VISITS = range(5)
-N_CELL_FIELDS = 4
+# Fields of cells[off]: observed-height mask, last scan id, last scan whose laser line
+# crossed the cell's floor unlit (`scanmap.grid.unlit`; 0 never), and the ray-bundle
+# scratch; a grid that counts visits (a submap) has a sixth, the scans whose rays
+# reached the cell (not saved: how strongly a submap saw it free).
+SEEN, SCAN, UNLIT, VKEY, VMASK, VISITS = range(6)
+N_CELL_FIELDS = 5
 
 # Point classes of classify_points.
 POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO_FAR = range(5)
@@ -730,10 +731,28 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
 
 
 @njit(cache=True, nogil=True)
+def mark_unlit(points: np.ndarray, tile_index: np.ndarray, cells: np.ndarray, x0: float,
+               y0: float, res: float, shift: int, scan: int) -> int:
+    """Stamp `scan` as the cells' last unlit scan at the (x, y) of points (M, 2+) in
+    allocated tiles (a cell no ray of the scan reached is not marked); returns how many."""
+    marked = 0
+    for i in range(points.shape[0]):
+        gx, gy = (points[i, 0] - x0) / res, (points[i, 1] - y0) / res
+        if not (0.0 <= gx < float(tile_index.shape[1] << shift)
+                and 0.0 <= gy < float(tile_index.shape[0] << shift)):
+            continue  # beyond the grid, or NaN
+        off = _cell_offset(tile_index, int(np.floor(gx)), int(np.floor(gy)), shift)
+        if off >= 0:
+            cells[off, UNLIT] = np.uint64(scan)
+            marked += 1
+    return marked
+
+
+@njit(cache=True, nogil=True)
 def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
                    nlev: np.ndarray, cells: np.ndarray, shift: int, levels: int, ix0: int,
                    iy0: int, out_f: np.ndarray, out_n: np.ndarray, out_nlev: np.ndarray,
-                   out_seen: np.ndarray, out_scan: np.ndarray) -> None:
+                   out_seen: np.ndarray, out_scan: np.ndarray, out_unlit: np.ndarray) -> None:
     """Copy cells [iy0, iy0+ny) x [ix0, ix0+nx) into dense arrays; absent tiles stay empty."""
     ny, nx = out_nlev.shape
     for y in range(ny):
@@ -745,6 +764,7 @@ def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
             out_nlev[y, x] = n
             out_seen[y, x] = cells[off, SEEN]
             out_scan[y, x] = cells[off, SCAN]
+            out_unlit[y, x] = cells[off, UNLIT] != 0
             for k in range(n):
                 out_f[y, x, k] = lev_f[off * levels + k]
                 out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS]

@@ -51,6 +51,7 @@ from scanmap.grid._kernels import (
     SCANS,
     SEEN,
     STAMP,
+    UNLIT,
     _cell_offset,
     _level_for,
     _merge_grown,
@@ -59,7 +60,7 @@ from scanmap.grid._kernels import (
     _remove,
     height_mask,
 )
-from scanmap.grid.packed import P_SCAN, P_SEEN, P_VISITS
+from scanmap.grid.packed import P_SCAN, P_SEEN, P_UNLIT, P_VISITS
 
 _U32_MAX = 4294967295.0
 
@@ -89,7 +90,8 @@ def _source_cell(src_index, src_origin, src_nlev, src_cells, motion, ix, iy, fp,
     holds nothing."""
     sx, sy = _source_index(motion, ix, iy, fp)
     off = _src_offset(src_index, src_origin, sx, sy, shift)
-    if off < 0 or (src_nlev[off] == 0 and src_cells[off, P_SEEN] == 0):
+    if off < 0 or (src_nlev[off] == 0 and src_cells[off, P_SEEN] == 0
+                   and src_cells[off, P_UNLIT] == 0):
         return -1
     return off
 
@@ -207,6 +209,9 @@ def merge_submap(src_index, src_origin, src_nlev, src_first, src_cells, src_f, s
             cells[do, SEEN] |= free
             if src_cells[so, P_SCAN] > 0:
                 cells[do, SCAN] = max(cells[do, SCAN], src_cells[so, P_SCAN] + np.uint64(offset))
+            if src_cells[so, P_UNLIT] > 0:
+                cells[do, UNLIT] = max(cells[do, UNLIT],
+                                       src_cells[so, P_UNLIT] + np.uint64(offset))
     for sy in range(src_box[1], src_box[3]):  # 2. the submap's levels
         for sx in range(src_box[0], src_box[2]):
             so = _src_offset(src_index, src_origin, sx, sy, shift)

@@ -30,7 +30,7 @@ from scanmap_driver.errors import MapError
 from scanmap_driver.files import exact_array
 
 POOL_NAMES = ("lev_f", "lev_n", "lev_flag", "nlev", "cells")
-SAVED_CELL_FIELDS = 2  # observed mask and scan id; the ray-bundle scratch is not saved
+SAVED_CELL_FIELDS = 3  # observed mask, scan id, unlit scan id; not the ray-bundle scratch
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,8 @@ class CellLayers:
     height mask; updated: last update time (NaN where never updated). stood: (M, 2) x, y
     where the robot stood (each scan's path as `insert` was given it, else the middle of
     its ray origins) during the scans inserted since the grid was made, inside the window:
-    floor the robot stood on (not kept in map files).
+    floor the robot stood on (not kept in map files). unlit: (ny, nx) bool, cells whose
+    floor a laser line crossed without a return (`scanmap.grid.unlit`); none if not given.
     """
 
     origin: tuple[float, float]
@@ -68,6 +69,11 @@ class CellLayers:
     seen: np.ndarray
     updated: np.ndarray
     stood: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    unlit: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.unlit is None:
+            object.__setattr__(self, "unlit", np.zeros(self.nlev.shape, bool))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -256,12 +262,15 @@ class HeightGrid:
             self._allocate(np.concatenate(tiles))
 
     def insert(self, points: np.ndarray, origins: np.ndarray, stamp: float,
-               stood: np.ndarray | None = None) -> InsertStats:
+               stood: np.ndarray | None = None, unlit: np.ndarray | None = None
+               ) -> InsertStats:
         """Fuse one scan: points (N, 3) in map, ray origins (N, 3) or one (3,), time (s).
 
         stood: (M, 2+) x, y where the robot stood during the scan (its path; default the
-        middle of the ray origins). Non-finite rays are skipped; a point or origin beyond
-        the configured extent raises MapError before anything changes.
+        middle of the ray origins). unlit: (K, 2+) x, y of floor the scan's laser lines
+        crossed without a return (`scanmap.grid.unlit.unlit_floor`), marked in the cells
+        its rays reached. Non-finite rays are skipped; a point or origin beyond the
+        configured extent raises MapError before anything changes.
         """
         points = np.ascontiguousarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 3:
@@ -306,6 +315,10 @@ class HeightGrid:
             hits, cleared, self._ray_key = gk.insert_scan(points, origins, cls,
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)
+            if unlit is not None:  # also when empty: compiled by the warm-up
+                gk.mark_unlit(np.ascontiguousarray(unlit, np.float64), self._tile_index,
+                              self._flat_pools()[4], c.corner, c.corner, c.resolution,
+                              self._shift, len(self._scan_times) - 1)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
             if stood is not None:
                 self._stood.extend(map(tuple, _path(stood, 0.5 * c.resolution)))
@@ -422,9 +435,10 @@ class HeightGrid:
             out_nlev = np.zeros((ny, nx), np.uint8)
             out_seen = np.zeros((ny, nx), np.uint64)
             out_scan = np.zeros((ny, nx), np.uint64)
+            out_unlit = np.zeros((ny, nx), bool)
             lev_f, lev_n, _, nlev, cells = self._flat_pools()
             gk.extract_window(self._tile_index, lev_f, lev_n, nlev, cells, self._shift, k,
-                              ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan)
+                              ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan, out_unlit)
             out_updated = np.asarray(self._scan_times)[out_scan]
             stood = np.array(self._stood, np.float64).reshape(-1, 2)
         origin = (round(c.corner + ix0 * c.resolution, 9), round(c.corner + iy0 * c.resolution, 9))
@@ -432,7 +446,7 @@ class HeightGrid:
         return CellLayers(origin=origin,
                           resolution=c.resolution, z_min=c.z_min, mask_dz=c.mask_dz,
                           levels=out_f, counts=out_n, nlev=out_nlev, seen=out_seen,
-                          updated=out_updated, stood=stood[inside])
+                          updated=out_updated, stood=stood[inside], unlit=out_unlit)
 
     # -- whole-state copy (map files) --------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:
@@ -497,7 +511,7 @@ class HeightGrid:
                            "configuration")
         times = exact_array(np.asarray(state["scan_times"]), f"{source}: scan_times",
                             np.float64, MapError, allow_nan=True)  # NaN: a scan without time
-        scan_ids = np.asarray(state["cells"])[..., gk.SCAN]
+        scan_ids = np.asarray(state["cells"])[..., gk.SCAN:]  # and unlit scan ids
         if times.ndim != 1 or not len(times) or (n and scan_ids.max() >= len(times)):
             raise MapError(f"{source}: scan_times does not cover the scan ids of the cells")
         grid._allocate(coords)  # slot i holds tile coords[i]

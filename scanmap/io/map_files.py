@@ -25,11 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap_driver.errors import MapError
 from scanmap_driver.files import atomic_path, exact_array, load_npz, save_npz
 
-FORMAT_VERSION = 2  # 2: the level record counts the scans that hit it (lev_n[..., SCANS])
+FORMAT_VERSION = 3  # 2: the level record counts the scans that hit it (lev_n[..., SCANS]);
+# 3: a cell records the last scan whose laser line crossed its floor unlit (cells[..., UNLIT])
 UNKNOWN_SHADE, FREE_SHADE, OCCUPIED_SHADE = 205, 254, 0
 # The thresholds written to the YAML for readers: 254 (occ 0.0039) < 0.196 < 205 (0.19608)
 # <= 0.65 < 0 (1.0), with the strict and the inclusive comparisons alike.
@@ -239,6 +241,14 @@ def _from_version_1(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return {**arrays, "lev_n": np.concatenate([lev_n, scans], axis=-1)}
 
 
+def _from_version_2(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A version-2 map read as version 3: no cell was seen unlit (`scanmap.grid.unlit`)."""
+    cells = np.asarray(arrays["cells"])
+    if cells.ndim != 3 or cells.shape[-1] != gk.UNLIT:
+        return arrays  # from_state names the bad shape
+    return {**arrays, "cells": np.concatenate([cells, np.zeros_like(cells[..., :1])], axis=-1)}
+
+
 def load_map(path: str | os.PathLike[str]) -> SavedMap:
     """Read a full map .npz; a corrupt, truncated or inconsistent file raises MapError."""
     required = ("format_version", "config", "resolution", "origin", "tile_coords",
@@ -249,10 +259,12 @@ def load_map(path: str | os.PathLike[str]) -> SavedMap:
             raise MapError(f"{path}: {key} must be a real number, got "
                            f"{arrays[key].dtype} of shape {arrays[key].shape}")
     version = arrays["format_version"]
+    if version not in (1, 2, FORMAT_VERSION):
+        raise MapError(f"{path}: format_version {version} is not 1, 2 or {FORMAT_VERSION}")
     if version == 1:
         arrays = _from_version_1(arrays)
-    elif version != FORMAT_VERSION:
-        raise MapError(f"{path}: format_version {version} is not 1 or {FORMAT_VERSION}")
+    if version in (1, 2):
+        arrays = _from_version_2(arrays)
     try:
         config = GridConfig(**json.loads(str(arrays["config"])))
     except (json.JSONDecodeError, TypeError) as exc:

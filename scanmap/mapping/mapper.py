@@ -53,6 +53,7 @@ from scanmap.graph import LoopCloser
 from scanmap.graph.localise import Localisation, NotLocalised, Session
 from scanmap.grid.height_grid import HeightGrid, InsertStats
 from scanmap.grid.rays import scan_rays
+from scanmap.grid.unlit import unlit_floor
 from scanmap.io.trajectory import Trajectory
 from scanmap.mapping.config import MapperConfig
 from scanmap.mapping.rebuild import (
@@ -274,18 +275,20 @@ class Mapper:
     def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
         poses = frame_poses(scan, pose)
         points, origins = scan_rays(scan, self.model, poses)
+        unlit = unlit_floor(scan, self.model, poses)
         last = poses if poses.ndim == 2 else poses[scan.frame_index.max()]
         c = self.config
         if c.grid.window is not None:
             self.grid.recenter(float(last[0, 3]), float(last[1, 3]))
         stats = self.grid.insert(points, origins, float(scan.time.max()),
-                                 stood=poses[..., :2, 3].reshape(-1, 2))  # its whole path
+                                 stood=poses[..., :2, 3].reshape(-1, 2),  # its whole path
+                                 unlit=unlit)
         self._position = (float(last[0, 3]), float(last[1, 3]))
         self._recent.append((points, scan.range_sigma))
         if self.loop_closer is not None:
             self._contributions[-1] = scan_contribution(points, origins, pose,
                                                         float(scan.time.max()),
-                                                        c.grid.resolution)
+                                                        c.grid.resolution, unlit)
         if c.keep_points is not None:
             keep = one_per_voxel(points, c.keep_points)
             self._kept.append((points[keep].astype(np.float32), scan.colors[keep]))

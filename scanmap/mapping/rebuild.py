@@ -12,7 +12,7 @@ bent and the scans after the last whole submap.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,24 +28,29 @@ class Contribution:
     """What a rebuild keeps of a fused scan, in base_link (float32, placed again at the
     scan's corrected pose): the rays' ends, their origins as rows of `origin_table` (a
     scan's rays start from a few camera positions, one a frame: 2 bytes a ray instead of
-    12), and the scan's time."""
+    12), the scan's time, and the floor its laser lines crossed unlit
+    (`scanmap.grid.unlit`)."""
 
     points: np.ndarray  # (N, 3) float32
     origin_table: np.ndarray  # (F, 3) float32
     origin_index: np.ndarray  # (N,) uint16, or uint32 beyond 65,536 origins
     stamp: float
+    unlit: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
 
     @classmethod
-    def of_rays(cls, points: np.ndarray, origins: np.ndarray, stamp: float) -> Contribution:
-        """From (N, 3) ray ends and origins: each run of equal origins (a frame's rays
-        come together) becomes one row of the table."""
+    def of_rays(cls, points: np.ndarray, origins: np.ndarray, stamp: float,
+                unlit: np.ndarray | None = None) -> Contribution:
+        """From (N, 3) ray ends and origins (and (K, 3) unlit floor): each run of equal
+        origins (a frame's rays come together) becomes one row of the table."""
         origins = np.asarray(origins, np.float32).reshape(-1, 3)
         starts = np.ones(len(origins), bool)
         starts[1:] = (origins[1:] != origins[:-1]).any(axis=1)
         index = np.cumsum(starts) - 1
         kind = np.uint16 if len(index) == 0 or index[-1] < 2**16 else np.uint32
+        unlit = np.zeros((0, 3)) if unlit is None else unlit
         return cls(np.asarray(points, np.float32).reshape(-1, 3), origins[starts],
-                   index.astype(kind), float(stamp))
+                   index.astype(kind), float(stamp),
+                   np.asarray(unlit, np.float32).reshape(-1, 3))
 
     @property
     def origins(self) -> np.ndarray:
@@ -55,7 +60,8 @@ class Contribution:
     @property
     def nbytes(self) -> int:
         """Bytes of its arrays."""
-        return self.points.nbytes + self.origin_table.nbytes + self.origin_index.nbytes
+        return self.points.nbytes + self.origin_table.nbytes + self.origin_index.nbytes \
+            + self.unlit.nbytes
 
     def placed(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(ends, origins) of its rays at `pose` (4x4), float64, in map."""
@@ -64,14 +70,17 @@ class Contribution:
 
 
 def scan_contribution(points: np.ndarray, origins: np.ndarray, pose: np.ndarray,
-                      stamp: float, resolution: float
+                      stamp: float, resolution: float, unlit: np.ndarray | None = None
                       ) -> Contribution:
-    """What a rebuild keeps of a fused scan: one ray per grid-sized voxel (`Contribution`).
-    points, origins: the scan's rays in map at `pose`."""
+    """What a rebuild keeps of a fused scan: one ray per grid-sized voxel, and one unlit
+    floor point (`Contribution`). points, origins, unlit: the scan's in map at `pose`."""
     cell = one_per_voxel(points, resolution)
     to_base = invert_pose(pose)
+    unlit = np.zeros((0, 3)) if unlit is None else unlit
+    dark = one_per_voxel(unlit, resolution)
     return Contribution.of_rays(transform_points(to_base, points[cell]),
-                                transform_points(to_base, origins[cell]), stamp)
+                                transform_points(to_base, origins[cell]), stamp,
+                                transform_points(to_base, unlit[dark]))
 
 
 def rebuild_grid(config: GridConfig, poses: np.ndarray,
@@ -312,7 +321,8 @@ def insert_kept(grid: HeightGrid, pose: np.ndarray,
                  kept: Contribution | None) -> None:
     """Fuse one scan's kept rays at `pose`."""
     if kept is not None:
-        grid.insert(*kept.placed(pose), kept.stamp)
+        grid.insert(*kept.placed(pose), kept.stamp,
+                    unlit=transform_points(pose, kept.unlit.astype(np.float64)))
 
 
 def _reserve_kept(grid: HeightGrid, poses: np.ndarray,

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from scanmap.evaluation.ground_truth import map_errors
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.grid.packed import P_SEEN, P_VISITS
 from scanmap.grid.rays import scan_rays
 from scanmap.mapping.rebuild import insert_kept, rebuild_grid, scan_contribution
 from scanmap.navigation.floor import segment
@@ -99,8 +100,8 @@ def test_a_packed_grid_holds_each_cells_levels_and_heights_in_less_memory():
         assert n == dense.nlev[y, x]
         levels = packed.lev_f[packed.first[off]:packed.first[off] + n]
         np.testing.assert_array_equal(levels, dense.levels[y, x, :n])
-        assert packed.cells[off, 0] == dense.seen[y, x]
-        assert packed.cells[off, 2] == 1  # no visits counted: one scan each
+        assert packed.cells[off, P_SEEN] == dense.seen[y, x]
+        assert packed.cells[off, P_VISITS] == 1  # no visits counted: one scan each
     assert packed.scan_times == tuple(grid._scan_times) and packed.stamp == grid.stamp
 
 

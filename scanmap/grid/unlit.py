@@ -1,0 +1,248 @@
+"""Floor the laser should have lit and the camera saw nothing on: a dark patch, not a gap.
+
+Each image line u of a frame looks along one line of the laser plane (the plane through
+the camera centre and the image line meets the laser plane there). Where that line
+reaches the floor (z = 0 of `base_link`) inside the image, the range limits and clear of
+the encoder disk, the floor must show the stripe on line u unless something nearer in
+the plane returned first. A line without any return there is dark floor (black carpet,
+a black-lined hole) or floor hidden from the camera, never a gap between the laser's
+lines: no ray was aimed into those.
+
+A line is counted only inside a run of MIN_RUN or more lines without a return whose two
+neighbouring lines returned the floor (within FLOOR_TOLERANCE of z = 0) MIN_SPAN or more
+apart, where its frame's other lines returned the floor at the run's ranges (LIT_SHARE
+of them, within LIT_REACH) and so did the whole scan's (RELIABLE_SHARE, per RANGE_BIN):
+the floor beyond and around shows the stripe was bright enough there. A stripe that
+fades with range (floor far off, lit at grazing incidence) drops out here and there
+all along the line: the rendered corridor has 672 such runs in 20 scans from 1.8 m out,
+and in the rendered `hazards` room the floor returns on at most 76 % of the lines of
+any range bin, against 94-99 % in ideal scans. A missed peak spans a line or two, and
+a laser shadow behind an object ends at the object, not the floor: none is taken for a
+dark patch. A frame whose points do not lie on the laser plane (a scan from another
+sensor, read from a bag) shows nothing unlit. The grid keeps the cells such lines
+reach (`HeightGrid.insert(unlit=...)`), and the segmentation never fills a patch
+without hits near them as floor between samples.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from numba import njit
+
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner_model import ScannerModel
+from scanmap_driver.transforms import transform_points
+from scanmap_driver.triangulation import pixel_rays
+
+FLOOR_TOLERANCE = 0.05  # m: a return this near z = 0 of base_link is the floor
+MIN_RUN = 3  # image lines: a shorter run without a return is a missed peak, not a patch
+MIN_SPAN = 0.05  # m of floor between a run's two neighbours: narrower is a missed peak
+LIT_REACH = 0.5  # m of range either side of a run over which its frame's floor is judged
+LIT_SHARE = 0.9  # of those lines returning the floor: the stripe shows at that range
+RANGE_BIN = 0.25  # m: the scan's floor is judged over all its frames per range bin,
+RELIABLE_SHARE = 0.85  # this share of the lines there returning the floor (ideal scans
+MIN_JUDGED = 100  # 0.94-0.99; rendered frames 0.07-0.76), from this many lines up
+PLANE_TOLERANCE = 0.01  # m: this scanner's points lie on its laser plane (triangulated)
+OFF_PLANE_SHARE = 0.05  # a frame with more of its points off the plane is another sensor's
+
+
+@functools.lru_cache(maxsize=8)
+def _line_ends(model: ScannerModel) -> tuple[np.ndarray, np.ndarray]:
+    """(W, 3) laser-plane points in `head` seen on each image line u at its first and last
+    pixel (v = 0 and v = height - 1); NaN where the pixel's ray misses the plane ahead."""
+    cam = model.camera
+    u = np.arange(cam.width, dtype=np.float64)
+    ends = []
+    for v in (0.0, cam.height - 1.0):
+        centre, rays = pixel_rays(model, u, np.full_like(u, v))
+        normal, origin = np.array(model.laser.normal), np.array(model.laser.origin)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (normal @ (origin - centre)) / (rays @ normal)
+        t[~(t > 0.0)] = np.nan
+        ends.append(centre + t[:, None] * rays)
+    return ends[0], ends[1]
+
+
+@njit(cache=True, nogil=True)
+def _floor_crossings(headings: np.ndarray, mount: np.ndarray, end_a: np.ndarray,
+                     end_b: np.ndarray, camera: np.ndarray, normal: np.ndarray,
+                     limits: np.ndarray, crossing: np.ndarray, reach: np.ndarray,
+                     ok: np.ndarray) -> None:
+    """Per frame (its heading) and image line (its laser line from end_a to end_b, in
+    `head`): crossing[f, u] the point in base_link where the line meets the floor,
+    reach[f, u] its distance from the head's axis, ok[f, u] whether the camera can
+    measure it there: inside the image, within the range limits and the ray-to-plane
+    angle, not behind the encoder disk. limits: (min range, max range, sine of the least
+    ray-to-plane angle, disk height, disk outer radius)."""
+    for f in range(headings.shape[0]):
+        c, s = np.cos(headings[f]), np.sin(headings[f])
+        head = np.empty((3, 4))
+        for r in range(3):  # mount @ Rz(heading)
+            head[r, 0] = mount[r, 0] * c + mount[r, 1] * s
+            head[r, 1] = mount[r, 1] * c - mount[r, 0] * s
+            head[r, 2], head[r, 3] = mount[r, 2], mount[r, 3]
+        cam = np.empty(3)
+        nrm = np.empty(3)
+        for r in range(3):
+            cam[r] = head[r, 0] * camera[0] + head[r, 1] * camera[1] \
+                + head[r, 2] * camera[2] + head[r, 3]
+            nrm[r] = head[r, 0] * normal[0] + head[r, 1] * normal[1] + head[r, 2] * normal[2]
+        for u in range(end_a.shape[0]):
+            za = head[2, 0] * end_a[u, 0] + head[2, 1] * end_a[u, 1] \
+                + head[2, 2] * end_a[u, 2] + head[2, 3]
+            zb = head[2, 0] * end_b[u, 0] + head[2, 1] * end_b[u, 1] \
+                + head[2, 2] * end_b[u, 2] + head[2, 3]
+            t = za / (za - zb) if za != zb else np.nan
+            ok[f, u] = False
+            if not 0.0 <= t <= 1.0:  # beyond the image's lines, or NaN
+                continue
+            for r in range(2):
+                pa = head[r, 0] * end_a[u, 0] + head[r, 1] * end_a[u, 1] \
+                    + head[r, 2] * end_a[u, 2] + head[r, 3]
+                pb = head[r, 0] * end_b[u, 0] + head[r, 1] * end_b[u, 1] \
+                    + head[r, 2] * end_b[u, 2] + head[r, 3]
+                crossing[f, u, r] = pa + t * (pb - pa)
+            crossing[f, u, 2] = 0.0
+            reach[f, u] = np.hypot(crossing[f, u, 0] - mount[0, 3],
+                                   crossing[f, u, 1] - mount[1, 3])
+            rx, ry, rz = crossing[f, u, 0] - cam[0], crossing[f, u, 1] - cam[1], -cam[2]
+            sine = abs(rx * nrm[0] + ry * nrm[1] + rz * nrm[2]) / np.sqrt(
+                rx * rx + ry * ry + rz * rz)
+            k = (limits[3] - cam[2]) / rz  # where the camera's ray passes the disk's face
+            hidden = 0.0 < k < 1.0 and np.hypot(cam[0] + k * rx, cam[1] + k * ry) <= limits[4]
+            ok[f, u] = limits[0] <= reach[f, u] <= limits[1] and sine >= limits[2] \
+                and not hidden
+
+
+@njit(cache=True, nogil=True)
+def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
+                  mount_inverse: np.ndarray, to_camera: np.ndarray, camera: np.ndarray,
+                  intrinsics: np.ndarray, dist: np.ndarray, laser: np.ndarray,
+                  returned: np.ndarray, floor: np.ndarray, off_plane: np.ndarray) -> None:
+    """Mark returned[slot, u] for the image line u of each point (base_link, seen at its
+    heading; the line `project_head_points` gives, without its arrays), floor[slot, u]
+    where the point lies within FLOOR_TOLERANCE of z = 0, and count in off_plane[slot]
+    the points farther than PLANE_TOLERANCE from the laser plane (origin, normal: laser)."""
+    fx, cx = intrinsics[0], intrinsics[2]
+    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    width = returned.shape[1]
+    last, c, s = np.nan, 1.0, 0.0
+    for i in range(points.shape[0]):
+        if headings[i] != last:
+            last = headings[i]
+            c, s = np.cos(last), np.sin(last)
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        mx = mount_inverse[0, 0] * px + mount_inverse[0, 1] * py + mount_inverse[0, 2] * pz \
+            + mount_inverse[0, 3]
+        my = mount_inverse[1, 0] * px + mount_inverse[1, 1] * py + mount_inverse[1, 2] * pz \
+            + mount_inverse[1, 3]
+        mz = mount_inverse[2, 0] * px + mount_inverse[2, 1] * py + mount_inverse[2, 2] * pz \
+            + mount_inverse[2, 3]
+        hx, hy, hz = c * mx + s * my, c * my - s * mx, mz
+        if abs((hx - laser[0]) * laser[3] + (hy - laser[1]) * laser[4]
+               + (hz - laser[2]) * laser[5]) > PLANE_TOLERANCE:
+            off_plane[slot[i]] += 1
+        hx, hy, hz = hx - camera[0], hy - camera[1], hz - camera[2]
+        z = to_camera[2, 0] * hx + to_camera[2, 1] * hy + to_camera[2, 2] * hz
+        if not z > 0.0:
+            continue
+        x = (to_camera[0, 0] * hx + to_camera[0, 1] * hy + to_camera[0, 2] * hz) / z
+        y = (to_camera[1, 0] * hx + to_camera[1, 1] * hy + to_camera[1, 2] * hz) / z
+        r2 = x * x + y * y
+        xd = x * (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))) + 2.0 * p1 * x * y \
+            + p2 * (r2 + 2.0 * x * x)
+        u = np.rint(fx * xd + cx)
+        if 0.0 <= u < width:
+            returned[slot[i], int(u)] = True
+            if abs(points[i, 2]) <= FLOOR_TOLERANCE:
+                floor[slot[i], int(u)] = True
+
+
+@njit(cache=True, nogil=True)
+def unlit_lines(returned: np.ndarray, floor: np.ndarray, crossing: np.ndarray,
+                reach: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """(F, W) bool: per frame, the measurable image lines (ok) without a return inside a
+    run of such lines (see the module): MIN_RUN lines or more, whose neighbours on both
+    sides returned the floor MIN_SPAN or more apart, on a frame whose other lines within
+    LIT_REACH of the run's ranges returned the floor at least LIT_SHARE of the time.
+    returned, floor, ok: (F, W) bool per image line; crossing (F, W, 3), reach (F, W)
+    from `_floor_crossings`."""
+    out = np.zeros(returned.shape, np.bool_)
+    for f in range(returned.shape[0]):
+        last = -1
+        for u in range(returned.shape[1]):
+            if not returned[f, u]:
+                continue
+            a, last = last, u
+            if a < 0 or u - a - 1 < MIN_RUN or not (floor[f, a] and floor[f, u]
+                                                     and ok[f, a] and ok[f, u]):
+                continue
+            if np.hypot(crossing[f, u, 0] - crossing[f, a, 0],
+                        crossing[f, u, 1] - crossing[f, a, 1]) < MIN_SPAN:
+                continue
+            near = min(reach[f, a], reach[f, u]) - LIT_REACH
+            far = max(reach[f, a], reach[f, u]) + LIT_REACH
+            lit = unlit = 0
+            for v in range(returned.shape[1]):
+                if (a < v < u) or not ok[f, v] or not near <= reach[f, v] <= far:
+                    continue
+                if not returned[f, v]:
+                    unlit += 1
+                elif floor[f, v]:
+                    lit += 1
+            if lit >= LIT_SHARE * (lit + unlit):
+                out[f, a + 1:u] = ok[f, a + 1:u]
+    return out
+
+
+def _reliable_ranges(returned: np.ndarray, floor: np.ndarray, reach: np.ndarray,
+                     ok: np.ndarray) -> np.ndarray:
+    """(F, W) bool: lines whose range bin (RANGE_BIN) holds MIN_JUDGED or more
+    measurable lines that returned the floor or nothing over the whole scan, RELIABLE_SHARE
+    of them the floor: this scan's stripe shows on the floor at that range."""
+    index = np.minimum(reach / RANGE_BIN, 1e6).astype(np.int64)
+    judged = ok & (floor | ~returned)
+    total = np.bincount(index[judged], minlength=index.max(initial=0) + 1)
+    lit = np.bincount(index[judged & returned], minlength=len(total))
+    return ((total >= MIN_JUDGED) & (lit >= RELIABLE_SHARE * total))[index]
+
+
+def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
+                ) -> np.ndarray:
+    """(M, 3) points in map (by `pose`, as `scan_rays` takes it) of the floor each frame of
+    `scan` should have lit on an image line that returned nothing (see the module)."""
+    pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
+    if not len(scan):
+        return np.zeros((0, 3))
+    frames, first, slot = np.unique(scan.frame_index, return_index=True, return_inverse=True)
+    cam = model.camera
+    returned = np.zeros((len(frames), cam.width), bool)
+    floor = np.zeros_like(returned)
+    off_plane = np.zeros(len(frames), np.int64)
+    _line_returns(scan.points, scan.heading, slot.astype(np.int64),
+                  np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
+                  np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
+                                                                   cam.cy]),
+                  cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
+                  returned, floor, off_plane)
+    foreign = off_plane > OFF_PLANE_SHARE * np.bincount(slot, minlength=len(frames))
+    crossing = np.zeros((len(frames), cam.width, 3))
+    reach = np.zeros((len(frames), cam.width))
+    ok = np.zeros((len(frames), cam.width), bool)
+    end_a, end_b = _line_ends(model)
+    disk = model.encoder
+    _floor_crossings(scan.heading[first], model.head_mount.pose, end_a, end_b,
+                     np.array(model.camera_mount.position), np.array(model.laser.normal),
+                     np.array([model.min_range, model.max_range,
+                               np.sin(model.min_ray_plane_angle), disk.height,
+                               disk.outer_radius]), crossing, reach, ok)
+    dark = unlit_lines(returned, floor, crossing, reach, ok)
+    dark[foreign] = False
+    dark &= _reliable_ranges(returned, floor, reach, ok)
+    out = []
+    for k in np.flatnonzero(dark.any(axis=1)):
+        frame_pose = pose if pose.ndim == 2 else pose[frames[k]]
+        out.append(transform_points(frame_pose, crossing[k, dark[k]]))
+    return np.concatenate(out) if out else np.zeros((0, 3))

@@ -1,0 +1,216 @@
+"""Floor the laser lit and the camera saw nothing on (`scanmap.grid.unlit`), and the grid
+cells that keep it."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from scanmap.grid import _kernels as gk
+from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.grid.rays import scan_rays
+from scanmap.grid.unlit import LIT_REACH, LIT_SHARE, MIN_RUN, MIN_SPAN, unlit_floor, unlit_lines
+from scanmap.io.map_files import load_map, save_map
+from scanmap.mapping.rebuild import rebuild_grid, scan_contribution
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner_model import reference_scanner
+from scanmap_driver.sim import Scene, builtin_scene
+from scanmap_driver.sim.ideal import ideal_scans
+from scanmap_driver.transforms import se2_to_pose, transform_points
+from scanmap_driver.triangulation import project_head_points
+
+MODEL = reference_scanner()
+
+
+def plain_unlit_lines(returned, floor, crossing, reach, ok) -> np.ndarray:
+    """The rule of the module docstring, read literally line by line."""
+    out = np.zeros(returned.shape, bool)
+    for f in range(returned.shape[0]):
+        lines = [u for u in range(returned.shape[1]) if returned[f, u]]
+        for a, b in itertools.pairwise(lines):
+            ends_on_floor = floor[f, a] and floor[f, b] and ok[f, a] and ok[f, b]
+            span = np.hypot(*(crossing[f, b, :2] - crossing[f, a, :2]))
+            if b - a - 1 < MIN_RUN or not ends_on_floor or span < MIN_SPAN:
+                continue
+            low = min(reach[f, a], reach[f, b]) - LIT_REACH
+            high = max(reach[f, a], reach[f, b]) + LIT_REACH
+            judged = [v for v in range(returned.shape[1]) if not a < v < b and ok[f, v]
+                      and low <= reach[f, v] <= high and (floor[f, v] or not returned[f, v])]
+            lit = sum(bool(returned[f, v]) for v in judged)
+            if lit >= LIT_SHARE * len(judged):
+                out[f, a + 1:b] = ok[f, a + 1:b]
+    return out
+
+
+@settings(max_examples=200, deadline=None)
+@given(arrays(bool, (3, 60)), arrays(bool, (3, 60)), arrays(bool, (3, 60)),
+       st.floats(0.001, 0.05), st.floats(0.0, 1.0))
+def test_unlit_lines_follow_the_rule_read_literally(returned, floor, missing, step, lit):
+    """Lines `step` m apart along the floor, ranges growing with u; most lines measurable,
+    `lit` of them returning the floor."""
+    u = np.arange(60)
+    crossing = np.zeros((3, 60, 3))
+    crossing[..., 0] = 1.4 + step * u
+    reach = crossing[..., 0].copy()
+    ok = ~(missing & (u % 7 == 0))
+    returned |= np.random.default_rng(0).random((3, 60)) < lit
+    floor &= returned
+    np.testing.assert_array_equal(unlit_lines(returned, floor, crossing, reach, ok),
+                                  plain_unlit_lines(returned, floor, crossing, reach, ok))
+
+
+def patch_room(side: float, reflectance: float = 0.0, height: float = 0.0) -> Scene:
+    """The hazards room without its hazards and one square patch `side` m wide centred
+    1.9 m ahead of the first pose: black floor, or a hole where height < 0."""
+    data = builtin_scene("hazards").to_dict()
+    data["objects"] = data["objects"][:4]
+    data["floor_regions"] = [{"center": [1.9, 0.3], "size": [side, side], "height": height,
+                              "reflectance": reflectance, "name": "patch"}]
+    data["scan_poses"] = data["scan_poses"][:2]
+    return Scene.from_dict(data)
+
+
+def near_patch(points: np.ndarray, scene: Scene, margin: float = 0.01) -> np.ndarray:
+    """Whether each point lies within `margin` m of the scene's (axis-aligned) patch."""
+    region = scene.floor_regions[0]
+    return np.any([region.contains(points[:, 0] + dx, points[:, 1] + dy)
+                   for dx in (-margin, 0.0, margin) for dy in (-margin, 0.0, margin)], axis=0)
+
+
+def test_a_black_patch_is_found_unlit_and_no_lit_floor_is():
+    scene = patch_room(0.5)
+    found = [unlit_floor(i.scan, MODEL, i.frame_poses) for i in ideal_scans(scene)]
+    points = np.concatenate(found)
+    assert len(points) > 100  # measured: 1190 over two scans
+    assert near_patch(points, scene).all()  # where the line meets the floor
+    assert np.abs(points[:, 2]).max() < 1e-9
+    plain = patch_room(0.5, reflectance=1.0)
+    assert not any(len(unlit_floor(i.scan, MODEL, i.frame_poses)) for i in ideal_scans(plain))
+
+
+def first_corridor_scan():
+    return next(ideal_scans(builtin_scene("corridor"), scans=1)).scan
+
+
+def test_a_stripe_fading_with_range_is_not_a_dark_patch():
+    """Floor returns only out to 2.2 m (a dim stripe far off at grazing incidence): the
+    lines beyond end at the walls, not at lit floor, so none is unlit."""
+    scan = first_corridor_scan()
+    assert len(unlit_floor(scan, MODEL)) == 0
+    far = np.hypot(scan.points[:, 0], scan.points[:, 1]) > 2.2
+    faded = scan.select(~(far & (np.abs(scan.points[:, 2]) < 0.05)))
+    assert len(faded) < len(scan) - 500  # measured: 628 fewer
+    assert len(unlit_floor(faded, MODEL)) == 0
+
+
+def lines_of(scan) -> np.ndarray:
+    """The image line u of each point of `scan`."""
+    out = np.empty(len(scan))
+    for i, (point, heading) in enumerate(zip(scan.points, scan.heading, strict=True)):
+        head = np.linalg.inv(MODEL.head_pose(heading)) @ np.append(point, 1.0)
+        out[i] = project_head_points(MODEL, head[None, :3])[0, 0]
+    return np.rint(out)
+
+
+def test_lines_without_a_return_on_the_floor_are_unlit_where_their_floor_points_were():
+    scan = first_corridor_scan()
+    on_floor = np.abs(scan.points[:, 2]) < 0.01
+    frame = scan.frame_index == np.bincount(scan.frame_index[on_floor]).argmax()
+    u = lines_of(scan.select(frame))
+    floor_lines = np.unique(u[on_floor[frame]])
+    start = floor_lines[len(floor_lines) // 2]
+    for run, expected in ((MIN_RUN - 1, 0), (MIN_RUN + 5, MIN_RUN + 5)):
+        gone = np.zeros(len(scan), bool)
+        gone[np.flatnonzero(frame)] = (u >= start) & (u < start + run)
+        assert gone.sum() == run
+        unlit = unlit_floor(scan.select(~gone), MODEL)
+        assert len(unlit) == expected  # a missed peak or two is no dark patch
+        if expected:  # each line's floor point is where its return was (noise: mm)
+            lost = scan.points[gone].astype(np.float64)
+            np.testing.assert_allclose(unlit[:, :2], lost[:, :2], atol=0.01)
+
+
+def test_empty_and_pointless_scans_are_unlit_nowhere():
+    scan = first_corridor_scan()
+    assert unlit_floor(scan.select(np.zeros(len(scan), bool)), MODEL).shape == (0, 3)
+    one = scan.select(np.arange(len(scan)) == 0)
+    assert unlit_floor(one, MODEL).shape == (0, 3)
+
+
+def unlit_grid() -> HeightGrid:
+    """A grid of one ray over flat floor, with unlit floor at three points: two in its
+    tiles, one outside every tile (not marked)."""
+    grid = HeightGrid(GridConfig(extent=20.0))
+    unlit = np.array([[1.02, 0.02, 0.0], [1.52, 0.02, 0.0], [15.0, 15.0, 0.0]])
+    grid.insert(np.array([[2.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]), 1.0, unlit=unlit)
+    return grid
+
+
+def test_the_grid_keeps_unlit_cells_through_files_and_merges(tmp_path):
+    grid = unlit_grid()
+    layers = grid.layers((0.0, -1.0, 3.0, 1.0))
+    marked = np.argwhere(layers.unlit)
+    np.testing.assert_array_equal(marked, [[20, 20], [20, 30]])  # (row, column)
+    assert grid.layers((14.0, 14.0, 16.0, 16.0)).unlit.sum() == 0
+    save_map(tmp_path / "map.npz", grid)
+    loaded = load_map(tmp_path / "map.npz").grid.layers((0.0, -1.0, 3.0, 1.0))
+    np.testing.assert_array_equal(loaded.unlit, layers.unlit)
+    base = HeightGrid(grid.config)
+    base.insert(np.array([[2.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]), 0.5)
+    base.merge(grid)
+    np.testing.assert_array_equal(base.layers((0.0, -1.0, 3.0, 1.0)).unlit, layers.unlit)
+
+
+def test_a_map_file_of_version_2_loads_without_unlit_cells(tmp_path):
+    grid = unlit_grid()
+    save_map(tmp_path / "map.npz", grid)
+    arrays = dict(np.load(tmp_path / "map.npz", allow_pickle=False))
+    arrays["format_version"] = np.array(2)
+    arrays["cells"] = np.delete(arrays["cells"], gk.UNLIT, axis=-1)
+    np.savez(tmp_path / "v2.npz", **arrays)
+    old = load_map(tmp_path / "v2.npz").grid
+    assert not old.layers((0.0, -1.0, 3.0, 1.0)).unlit.any()
+    np.testing.assert_array_equal(old.layers((0.0, -1.0, 3.0, 1.0)).seen,
+                                  grid.layers((0.0, -1.0, 3.0, 1.0)).seen)
+
+
+def test_points_off_the_laser_plane_are_another_sensors_and_show_nothing_unlit():
+    """A cloud read from a bag (not this scanner's triangulated points) is no evidence."""
+    scan = next(ideal_scans(patch_room(0.5), scans=1)).scan
+    assert len(unlit_floor(scan, MODEL))
+    rng = np.random.default_rng(0)
+    moved = Scan(**{name: getattr(scan, name) for name in
+                    ("colors", "time", "heading", "frame_index", "range_sigma")},
+                 points=scan.points + rng.normal(0.0, 0.05, scan.points.shape) * [1, 1, 0])
+    assert len(unlit_floor(moved, MODEL)) == 0
+
+
+def test_a_stripe_that_misses_the_floor_often_shows_nothing_unlit():
+    """Rendered frames return the floor on at most 76 % of the lines at any range: where
+    the floor returns that unreliably, no run without a return means a dark patch."""
+    scan = next(ideal_scans(patch_room(0.5), scans=1)).scan
+    on_floor = np.abs(scan.points[:, 2]) < 0.01
+    dropped = on_floor & (np.random.default_rng(0).random(len(scan)) < 0.3)
+    assert len(unlit_floor(scan, MODEL)) and not len(unlit_floor(scan.select(~dropped), MODEL))
+
+
+def test_a_rebuild_after_loop_closure_keeps_the_unlit_floor_where_the_scan_moved():
+    ideal = next(ideal_scans(patch_room(0.5), scans=1))
+    points, origins = scan_rays(ideal.scan, MODEL, ideal.frame_poses)
+    unlit = unlit_floor(ideal.scan, MODEL, ideal.frame_poses)
+    pose = ideal.pose_start
+    kept = scan_contribution(points, origins, pose, 1.0, 0.05, unlit)
+    moved = se2_to_pose(0.5, 0.0, 0.0) @ pose  # the corrected pose, half a metre on
+    grid = rebuild_grid(GridConfig(extent=20.0), moved[None], [kept])
+    box = (-1.0, -2.0, 5.0, 2.0)
+    marked = grid.layers(box).unlit
+    shifted = transform_points(moved @ np.linalg.inv(pose), unlit)
+    direct = HeightGrid(GridConfig(extent=20.0))
+    direct.insert(transform_points(moved @ np.linalg.inv(pose), points),
+                  transform_points(moved @ np.linalg.inv(pose), origins), 1.0, unlit=shifted)
+    assert marked.sum() > 20
+    np.testing.assert_array_equal(marked, direct.layers(box).unlit)
