@@ -75,6 +75,7 @@ from benchmarks.random_rooms import mixed_room, people_room, random_room
 from scanmap.evaluation.ground_truth import drop_off_errors
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
+from scanmap.grid.unlit import unlit_floor
 from scanmap.navigation.floor import (
     DROP_OFF,
     FREE,
@@ -130,9 +131,11 @@ def scene_window(scene: Scene) -> tuple[float, float, float, float]:
 
 
 def fuse(grid: HeightGrid, ideal: IdealScan) -> None:
-    """Insert one ideal scan at its true frame poses."""
-    points, origins = scan_rays(ideal.scan, reference_scanner(), ideal.frame_poses)
-    grid.insert(points, origins, float(ideal.scan.time.max()))
+    """Insert one ideal scan at its true frame poses, with the floor it saw unlit."""
+    model = reference_scanner()
+    points, origins = scan_rays(ideal.scan, model, ideal.frame_poses)
+    grid.insert(points, origins, float(ideal.scan.time.max()),
+                unlit=unlit_floor(ideal.scan, model, ideal.frame_poses))
 
 
 def mapped(scene: Scene, scans: int | None = None, seed: int = 0,

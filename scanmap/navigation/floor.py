@@ -176,7 +176,10 @@ class FloorConfig:
     2.5 m or nearer is crossed by a line and shows itself (below the floor, or a
     drop-off) before its cells are filled.
     floor_probe: rays that passed this low (m) over a cell's floor should have lit it
-    (the stripe runs along them); without a return there it is not FREE.
+    (the stripe runs along them); without a return there it is not FREE. Nor is a cell
+    without a hit within max_gap of floor a laser line crossed without a return
+    (`CellLayers.unlit`, `scanmap.grid.unlit`: black carpet, a black-lined hole), however
+    small the patch: no gap between samples lies there.
     min_logodds: the log-odds a level in the robot's band needs to make its cell an
     OBSTACLE. Below it the level is as likely gone as there (a surface seen in one scan
     and seen through twice since: 0.85 - 2 x 0.4 = 0.05 with the grid's defaults, a
@@ -397,7 +400,8 @@ def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
                 layers.origin[1] + rows.start * layers.resolution),
         resolution=layers.resolution, z_min=layers.z_min, mask_dz=layers.mask_dz,
         levels=crop(layers.levels), counts=crop(layers.counts), nlev=crop(layers.nlev),
-        seen=crop(layers.seen), updated=crop(layers.updated), stood=layers.stood)
+        seen=crop(layers.seen), updated=crop(layers.updated), stood=layers.stood,
+        unlit=crop(layers.unlit))
 
 
 def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
@@ -521,6 +525,13 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     unlit = (probed & bare) | steep | bridges
     unlit &= ~is_floor & ~stood & ~assumed & ~holes & ~lines
     unlit |= ~seen_floor
+    # Near floor a laser line crossed without a return (`scanmap.grid.unlit`: black
+    # carpet, a black-lined hole), no cell without a hit is a gap between samples: the
+    # laser was aimed there and nothing came back
+    dark = layers.unlit & (layers.nlev == 0)
+    dim = morphology.within_distance(dark, gap) & (layers.nlev == 0) & ~stood \
+        if dark.any() else dark
+    unlit |= dim
     state = np.empty((ny, nx), np.uint8)
     points = np.empty((ny, nx, 2), np.float32)
     band_logodds = np.empty((ny, nx), np.float32)
@@ -539,7 +550,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     state[(state == FREE) & unlit] = UNKNOWN
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
-    state[_pinholes(state, layers.nlev, round(params.max_pinhole / res))] = FREE
+    state[_pinholes(state, layers.nlev, round(params.max_pinhole / res)) & ~dim] = FREE
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
                         is_floor=(is_floor | stood | holes) & (state != OBSTACLE) & ~drop
