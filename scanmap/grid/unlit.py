@@ -11,17 +11,17 @@ lines: no ray was aimed into those.
 A line is counted only inside a run of MIN_RUN or more lines without a return whose two
 neighbouring lines returned the floor (within FLOOR_TOLERANCE of z = 0) MIN_SPAN or more
 apart, where its frame's other lines returned the floor at the run's ranges (LIT_SHARE
-of them, within LIT_REACH) and so did the whole scan's (RELIABLE_SHARE, per RANGE_BIN):
-the floor beyond and around shows the stripe was bright enough there. A stripe that
-fades with range (floor far off, lit at grazing incidence) drops out here and there
-all along the line: the rendered corridor has 672 such runs in 20 scans from 1.8 m out,
-and in the rendered `hazards` room the floor returns on at most 76 % of the lines of
-any range bin, against 94-99 % in ideal scans. A missed peak spans a line or two, and
-a laser shadow behind an object ends at the object, not the floor: none is taken for a
-dark patch. A frame whose points do not lie on the laser plane (a scan from another
-sensor, read from a bag) shows nothing unlit. The grid keeps the cells such lines
-reach (`HeightGrid.insert(unlit=...)`), and the segmentation never fills a patch
-without hits near them as floor between samples.
+of them, within LIT_REACH) and so did the whole scan's (per RANGE_BIN): the floor
+beyond and around shows the stripe was bright enough there. A stripe that fades with
+range (floor far off, lit at grazing incidence) drops out here and there all along the
+line: the rendered corridor has 672 such runs in 20 scans from 1.8 m out, and in the
+rendered corridor and `hazards` room the floor returns on 96-98 % of the lines out to
+1.75 m and on at most 85 % beyond, against 97-99 % at every range in ideal scans. A
+missed peak spans a line or two, and a laser shadow behind an object ends at the
+object, not the floor: none is taken for a dark patch. A frame whose points do not lie
+on the laser plane (a scan from another sensor, read from a bag) shows nothing unlit.
+The grid keeps the cells such lines reach (`HeightGrid.insert(unlit=...)`), and the
+segmentation never fills a patch without hits near them as floor between samples.
 """
 
 from __future__ import annotations
@@ -41,9 +41,8 @@ MIN_RUN = 3  # image lines: a shorter run without a return is a missed peak, not
 MIN_SPAN = 0.05  # m of floor between a run's two neighbours: narrower is a missed peak
 LIT_REACH = 0.5  # m of range either side of a run over which its frame's floor is judged
 LIT_SHARE = 0.9  # of those lines returning the floor: the stripe shows at that range
-RANGE_BIN = 0.25  # m: the scan's floor is judged over all its frames per range bin,
-RELIABLE_SHARE = 0.85  # this share of the lines there returning the floor (ideal scans
-MIN_JUDGED = 100  # 0.94-0.99; rendered frames 0.07-0.76), from this many lines up
+RANGE_BIN = 0.25  # m: and so over all the scan's frames per range bin (ideal scans
+MIN_JUDGED = 100  # 0.97-0.99; rendered ones 0.96-0.98 to 1.75 m, 0.85 at most beyond)
 PLANE_TOLERANCE = 0.01  # m: this scanner's points lie on its laser plane (triangulated)
 OFF_PLANE_SHARE = 0.05  # a frame with more of its points off the plane is another sensor's
 
@@ -127,6 +126,7 @@ def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
     the points farther than PLANE_TOLERANCE from the laser plane (origin, normal: laser)."""
     fx, cx = intrinsics[0], intrinsics[2]
     k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    distorted = k1 != 0.0 or k2 != 0.0 or p1 != 0.0 or p2 != 0.0 or k3 != 0.0
     width = returned.shape[1]
     last, c, s = np.nan, 1.0, 0.0
     for i in range(points.shape[0]):
@@ -148,16 +148,34 @@ def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
         z = to_camera[2, 0] * hx + to_camera[2, 1] * hy + to_camera[2, 2] * hz
         if not z > 0.0:
             continue
-        x = (to_camera[0, 0] * hx + to_camera[0, 1] * hy + to_camera[0, 2] * hz) / z
-        y = (to_camera[1, 0] * hx + to_camera[1, 1] * hy + to_camera[1, 2] * hz) / z
-        r2 = x * x + y * y
-        xd = x * (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))) + 2.0 * p1 * x * y \
-            + p2 * (r2 + 2.0 * x * x)
+        inverse = 1.0 / z
+        xd = (to_camera[0, 0] * hx + to_camera[0, 1] * hy + to_camera[0, 2] * hz) * inverse
+        if distorted:
+            x = xd
+            y = (to_camera[1, 0] * hx + to_camera[1, 1] * hy + to_camera[1, 2] * hz) * inverse
+            r2 = x * x + y * y
+            xd = x * (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))) + 2.0 * p1 * x * y \
+                + p2 * (r2 + 2.0 * x * x)
         u = np.rint(fx * xd + cx)
         if 0.0 <= u < width:
             returned[slot[i], int(u)] = True
             if abs(points[i, 2]) <= FLOOR_TOLERANCE:
                 floor[slot[i], int(u)] = True
+
+
+@njit(cache=True, nogil=True)
+def _floor_runs(returned: np.ndarray, floor: np.ndarray, foreign: np.ndarray) -> bool:
+    """Whether a frame not `foreign` has MIN_RUN or more lines without a return between
+    two that returned the floor (what `unlit_lines` then judges)."""
+    for f in range(returned.shape[0]):
+        last = -1
+        for u in range(returned.shape[1]):
+            if returned[f, u]:
+                if last >= 0 and u - last - 1 >= MIN_RUN and floor[f, last] and floor[f, u] \
+                        and not foreign[f]:
+                    return True
+                last = u
+    return False
 
 
 @njit(cache=True, nogil=True)
@@ -200,13 +218,19 @@ def unlit_lines(returned: np.ndarray, floor: np.ndarray, crossing: np.ndarray,
 def _reliable_ranges(returned: np.ndarray, floor: np.ndarray, reach: np.ndarray,
                      ok: np.ndarray) -> np.ndarray:
     """(F, W) bool: lines whose range bin (RANGE_BIN) holds MIN_JUDGED or more
-    measurable lines that returned the floor or nothing over the whole scan, RELIABLE_SHARE
-    of them the floor: this scan's stripe shows on the floor at that range."""
+    measurable lines that returned the floor or nothing over the whole scan, LIT_SHARE of
+    them the floor: this scan's stripe shows on the floor at that range. Lines past a
+    frame's first or last floor return are not judged: the laser's fan ends there (the
+    ideal scans light no floor nearer than image line 563), or the floor is out of
+    sight."""
     index = np.minimum(reach / RANGE_BIN, 1e6).astype(np.int64)
-    judged = ok & (floor | ~returned)
+    lit = floor & returned
+    between = np.logical_or.accumulate(lit, axis=1) \
+        & np.logical_or.accumulate(lit[:, ::-1], axis=1)[:, ::-1]
+    judged = ok & (floor | ~returned) & between  # not past a frame's floor returns
     total = np.bincount(index[judged], minlength=index.max(initial=0) + 1)
-    lit = np.bincount(index[judged & returned], minlength=len(total))
-    return ((total >= MIN_JUDGED) & (lit >= RELIABLE_SHARE * total))[index]
+    shown = np.bincount(index[judged & returned], minlength=len(total))
+    return ((total >= MIN_JUDGED) & (shown >= LIT_SHARE * total))[index]
 
 
 def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
@@ -228,6 +252,8 @@ def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
                   cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
                   returned, floor, off_plane)
     foreign = off_plane > OFF_PLANE_SHARE * np.bincount(slot, minlength=len(frames))
+    if not _floor_runs(returned, floor, foreign):  # most scans: skip the floor's geometry
+        return np.zeros((0, 3))
     crossing = np.zeros((len(frames), cam.width, 3))
     reach = np.zeros((len(frames), cam.width))
     ok = np.zeros((len(frames), cam.width), bool)

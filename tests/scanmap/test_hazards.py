@@ -273,12 +273,14 @@ def test_the_sharp_corner_of_a_pit_is_never_free():
     assert measures["drop_free_any_scan"] == 0
 
 
-def small_patch_scene(height: float, reflectance: float, size: float = 0.25) -> Scene:
-    """The hazards room without its hazards and one patch `size` m wide 1.2 m ahead of the
-    robot: a hole (height < 0), black floor (reflectance 0) or plain floor."""
+def small_patch_scene(height: float, reflectance: float, size: float = 0.25,
+                      x: float = 1.7) -> Scene:
+    """The hazards room without its hazards and one patch `size` m wide centred at x (1.2
+    m ahead of the robot by default): a hole (height < 0), black floor (reflectance 0) or
+    plain floor."""
     data = builtin_scene("hazards").to_dict()
     data["objects"] = data["objects"][:4]
-    data["floor_regions"] = [{"center": [1.7, 0.3], "size": [size, size], "height": height,
+    data["floor_regions"] = [{"center": [x, 0.3], "size": [size, size], "height": height,
                               "reflectance": reflectance, "name": "patch"}]
     data["scan_poses"] = data["scan_poses"][:3]
     return Scene.from_dict(data)
