@@ -2,8 +2,9 @@
 
 A cell (default 5 cm) holds up to K levels - occupied height intervals with clamped
 log-odds, hit and pass counts and the mean hit position inside the cell - plus the
-heights observed there (a 64-bit mask) and its last update time. Floor height and the
-obstacle layer are derived from these (`scanmap.navigation.floor`).
+heights observed there (a 64-bit mask), its last update time and the last scan whose
+laser lines crossed its floor without a return (`scanmap.grid.unlit`). Floor height and
+the obstacle layer are derived from these (`scanmap.navigation.floor`).
 
 Memory follows the area seen: the map is cut into square tiles (64 x 64 cells) that
 are allocated when a ray first crosses them, inside a configured maximum extent (a
@@ -268,9 +269,10 @@ class HeightGrid:
 
         stood: (M, 2+) x, y where the robot stood during the scan (its path; default the
         middle of the ray origins). unlit: (K, 2+) x, y of floor the scan's laser lines
-        crossed without a return (`scanmap.grid.unlit.unlit_floor`), marked in the cells
-        its rays reached. Non-finite rays are skipped; a point or origin beyond the
-        configured extent raises MapError before anything changes.
+        crossed without a return (`scanmap.grid.unlit.unlit_floor`), marked in the tiles
+        its rays reached (none are allocated for them). Non-finite rays are skipped; a
+        point or origin beyond the configured extent raises MapError before anything
+        changes.
         """
         points = np.ascontiguousarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 3:
@@ -316,9 +318,10 @@ class HeightGrid:
                                                           self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)
             if unlit is not None:  # also when empty: compiled by the warm-up
+                *_, cells = self._flat_pools()
                 gk.mark_unlit(np.ascontiguousarray(unlit, np.float64), self._tile_index,
-                              self._flat_pools()[4], c.corner, c.corner, c.resolution,
-                              self._shift, len(self._scan_times) - 1)
+                              cells, c.corner, c.corner, c.resolution, self._shift,
+                              len(self._scan_times) - 1)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
             if stood is not None:
                 self._stood.extend(map(tuple, _path(stood, 0.5 * c.resolution)))
