@@ -243,3 +243,22 @@ def test_the_compiled_image_lines_are_those_of_project_head_points_with_distorti
         if 0 <= u < cam.width:
             expected[row, int(u)] = True
     np.testing.assert_array_equal(returned, expected)
+
+
+def test_nan_and_inf_points_or_headings_mark_nothing_false():
+    """Non-finite points return no line; a frame whose heading is not finite is not
+    judged: neither marks floor that was lit."""
+    scan = next(ideal_scans(small_patch_scene(0.0, 0.0, 0.5, x=2.0), scans=1)).scan
+    found = unlit_floor(scan, MODEL)
+    fields = {name: getattr(scan, name) for name in ("colors", "time", "frame_index",
+                                                     "range_sigma")}
+    points = scan.points.copy()
+    points[::50], points[1::50] = np.nan, np.inf
+    damaged = unlit_floor(Scan(points=points, heading=scan.heading, **fields), MODEL)
+    assert len(damaged) and near_patch(damaged, small_patch_scene(0.0, 0.0, 0.5, x=2.0)).all()
+    assert len(damaged) <= len(found) + 10
+    heading = scan.heading.copy()
+    heading[scan.frame_index % 3 == 0] = np.nan  # a third of the frames
+    unjudged = unlit_floor(Scan(points=scan.points, heading=heading, **fields), MODEL)
+    assert np.isfinite(unjudged).all() and 0 < len(unjudged) < len(found)  # 105 of 152
+    assert near_patch(unjudged, small_patch_scene(0.0, 0.0, 0.5, x=2.0)).all()
