@@ -41,8 +41,9 @@ MIN_RUN = 3  # image lines: a shorter run without a return is a missed peak, not
 MIN_SPAN = 0.05  # m of floor between a run's two neighbours: narrower is a missed peak
 LIT_REACH = 0.5  # m of range either side of a run over which its frame's floor is judged
 LIT_SHARE = 0.9  # of those lines returning the floor: the stripe shows at that range
-RANGE_BIN = 0.25  # m: and so over all the scan's frames per range bin (ideal scans
-MIN_JUDGED = 100  # 0.97-0.99; rendered ones 0.96-0.98 to 1.75 m, 0.85 at most beyond)
+RANGE_BIN = 0.25  # m: and so do all the scan's frames, per range bin of this width
+MIN_JUDGED = 100  # lines a bin needs to be judged (ideal scans return the floor on 97-99 %
+# of them at every range; rendered ones on 96-98 % to 1.75 m and at most 85 % beyond)
 PLANE_TOLERANCE = 0.01  # m: this scanner's points lie on its laser plane (triangulated)
 OFF_PLANE_SHARE = 0.05  # a frame with more of its points off the plane is another sensor's
 
