@@ -410,7 +410,9 @@ class Mapper:
                 "kept_origins": np.concatenate([empty, *(k.origins for k in kept)]),
                 "kept_sizes": np.array([-1 if k is None else len(k.points)
                                         for k in self._contributions], np.int64),
-                "kept_stamps": np.array([k.stamp for k in kept], np.float64)}
+                "kept_stamps": np.array([k.stamp for k in kept], np.float64),
+                "kept_unlit": np.concatenate([empty, *(k.unlit for k in kept)]),
+                "kept_unlit_sizes": np.array([len(k.unlit) for k in kept], np.int64)}
 
     def _resume_loops(self, state: MapperState) -> None:
         """Continue the saved pose graph; a map saved without one starts a new graph whose
@@ -485,12 +487,16 @@ class Mapper:
 
 
 def _split_kept(loops: dict[str, np.ndarray]) -> list[Contribution | None]:
-    """The per-scan kept points of a map file's loop-closure arrays, as the Mapper keeps them."""
+    """The per-scan kept points of a map file's loop-closure arrays, as the Mapper keeps
+    them (without unlit floor in a file written before it was kept)."""
     sizes = loops["kept_sizes"]
     fused = sizes >= 0
     bounds = np.cumsum(sizes[fused])[:-1]
     points = iter(np.split(loops["kept_points"], bounds))
     origins = iter(np.split(loops["kept_origins"], bounds))
     stamps = iter(loops["kept_stamps"].tolist())
-    return [Contribution.of_rays(next(points), next(origins), next(stamps)) if f else None
-            for f in fused]
+    unlit_sizes = loops.get("kept_unlit_sizes", np.zeros(int(fused.sum()), np.int64))
+    unlit = iter(np.split(loops.get("kept_unlit", np.zeros((0, 3), np.float32)),
+                          np.cumsum(unlit_sizes)[:-1]))
+    return [Contribution.of_rays(next(points), next(origins), next(stamps), next(unlit))
+            if f else None for f in fused]

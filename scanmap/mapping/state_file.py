@@ -21,7 +21,9 @@ reads it) plus the mapper's own arrays:
                          keyframes, optional fixed: the first nodes held) and the
                          Mapper's per-scan kept points for rebuilding the grid
                          (kept_points, kept_origins in base_link, kept_sizes (N,) with -1
-                         for a scan not fused, kept_stamps); base_*: the grid's arrays
+                         for a scan not fused, kept_stamps; kept_unlit in base_link and
+                         kept_unlit_sizes per fused scan, the floor its laser lines
+                         crossed unlit, absent from older files); base_*: the grid's arrays
                          that rebuilds start from, when the graph began over a map
                          saved without one
 

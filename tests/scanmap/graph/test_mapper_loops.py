@@ -8,7 +8,9 @@ from scanmap.evaluation import ate_rmse, map_errors
 from scanmap.graph import LoopClosureConfig
 from scanmap.mapping import Mapper, MapperConfig
 from scanmap_driver.sim import truth_raster
+from scanmap_driver.sim.ideal import ideal_scans
 from tests.scanmap.graph.ring_scene import corridor_b_end, ring_scene
+from tests.scanmap.test_hazards import small_patch_scene
 
 
 def mapped(ideal: list, loop_closure: bool) -> Mapper:
@@ -50,3 +52,22 @@ def test_a_map_saved_mid_run_keeps_its_graph_and_closes_the_loop_later(ring_idea
     assert any(loop.candidate < half <= loop.query for loop in closer.loops)
     truth = np.array([s.pose_start for s in ring_ideal])
     assert ate_rmse(resumed.trajectory().poses, truth, "se2") < 0.05
+
+
+def test_a_saved_map_keeps_each_scans_unlit_floor_for_later_rebuilds(tmp_path):
+    """Saved and resumed, the kept floor a scan's laser lines crossed unlit is the same,
+    so a rebuild after the restart still keeps a dark patch out of the free space."""
+    config = MapperConfig(loop_closure=LoopClosureConfig(enabled=True), update_obstacles=False)
+    scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
+    ideal = list(ideal_scans(scene, scans=2))
+    first = Mapper(config=config, offline=True, initial_pose=ideal[0].pose_start)
+    first.map_scans(s.scan for s in ideal)
+    first.save(tmp_path / "map.npz")
+    first.loop_closer.close()
+    resumed = Mapper.load(tmp_path / "map.npz", offline=True)
+    before = [k.unlit for k in first._contributions]
+    after = [k.unlit for k in resumed._contributions]
+    resumed.loop_closer.close()
+    assert sum(map(len, before)) > 10
+    for saved, loaded in zip(before, after, strict=True):
+        np.testing.assert_array_equal(saved, loaded)
