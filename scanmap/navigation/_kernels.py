@@ -508,33 +508,84 @@ def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarr
     return out
 
 
+# `grow_region`'s jumps: to the 16 cells two away (dy, dx), across the cells between
+# (ay, ax) and (by, bx) (half the way, rounded both ways: one cell, or two for a knight's
+# move), and their lengths in cells
+_JUMPS = np.array([(dy, dx, int(dy / 2), int(dx / 2), dy - int(dy / 2), dx - int(dx / 2))
+                   for dy in range(-2, 3) for dx in range(-2, 3) if max(abs(dy), abs(dx)) == 2],
+                  np.int64)
+_JUMP_LENGTHS = np.hypot(_JUMPS[:, 0], _JUMPS[:, 1])
+
+
 @njit(cache=True, nogil=True)
-def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float) -> np.ndarray:
-    """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step."""
+def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
+                empty: np.ndarray, max_rise: float) -> np.ndarray:
+    """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step,
+    and across the `empty` cells (no hit: a gap between the laser's lines) to the cells two
+    away whose heights differ by at most `max_rise` per cell of the distance (a floor's
+    slope, not a step's face), where every cell between lies in `empty` (its midpoint, or
+    both cells beside a knight's move). Jumps are tried only from the few candidates the
+    neighbours alone did not reach (a jump is the same from either end), and onwards."""
     ny, nx = heights.shape
     inside = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
-    head, tail = 0, 0
+    tail = 0
     for y in range(ny):
         for x in range(nx):
             if seeds[y, x]:
                 queue[tail] = y * nx + x
                 tail += 1
-    while head < tail:
-        i = queue[head]
-        head += 1
-        y, x = i // nx, i % nx
-        h = heights[y, x]
-        for dy in range(-1, 2):
-            for dx in range(-1, 2):
-                yy, xx = y + dy, x + dx
-                if 0 <= yy < ny and 0 <= xx < nx and not inside[yy, xx]:
-                    hh = heights[yy, xx]
-                    if abs(hh - h) <= max_step:  # False for NaN (no candidate)
-                        inside[yy, xx] = True
-                        queue[tail] = yy * nx + xx
-                        tail += 1
+    head = tail = _spread(heights, inside, queue, 0, tail, max_step, empty, max_rise, False)
+    for y in range(ny):
+        for x in range(nx):
+            if inside[y, x] or np.isnan(heights[y, x]):
+                continue
+            for k in range(_JUMPS.shape[0]):
+                if _can_jump(heights, empty, max_rise, y, x, k) \
+                        and inside[y + _JUMPS[k, 0], x + _JUMPS[k, 1]]:
+                    inside[y, x] = True
+                    queue[tail] = y * nx + x
+                    tail += 1
+                    break
+    _spread(heights, inside, queue, head, tail, max_step, empty, max_rise, True)
     return inside
+
+
+@njit(cache=True, nogil=True)
+def _spread(heights: np.ndarray, inside: np.ndarray, queue: np.ndarray, head: int,
+            tail: int, max_step: float, empty: np.ndarray, max_rise: float,
+            jumps: bool) -> int:
+    """`grow_region`'s breadth-first growth from the cells queue[head:tail] (inside),
+    with or without jumps; returns the queue's new tail."""
+    ny, nx = heights.shape
+    while head < tail:
+        y, x = queue[head] // nx, queue[head] % nx
+        head += 1
+        h = heights[y, x]
+        for yy in range(max(y - 1, 0), min(y + 2, ny)):
+            for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                if not inside[yy, xx] and abs(heights[yy, xx] - h) <= max_step:  # not NaN
+                    inside[yy, xx] = True
+                    queue[tail] = yy * nx + xx
+                    tail += 1
+        for k in range(_JUMPS.shape[0] if jumps else 0):
+            yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
+            if _can_jump(heights, empty, max_rise, y, x, k) and not inside[yy, xx]:
+                inside[yy, xx] = True
+                queue[tail] = yy * nx + xx
+                tail += 1
+    return tail
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _can_jump(heights: np.ndarray, empty: np.ndarray, max_rise: float, y: int, x: int,
+              k: int) -> bool:
+    """Whether `grow_region` may jump from (y, x) by _JUMPS[k] (inside the grid)."""
+    ny, nx = heights.shape
+    yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
+    return 0 <= yy < ny and 0 <= xx < nx and empty[y + _JUMPS[k, 2], x + _JUMPS[k, 3]] \
+        and empty[y + _JUMPS[k, 4], x + _JUMPS[k, 5]] \
+        and abs(heights[yy, xx] - heights[y, x]) <= max_rise * _JUMP_LENGTHS[k]
 
 
 @njit(cache=True, nogil=True)

@@ -4,8 +4,12 @@ Floor: a cell's lowest level is a floor candidate when it is thin (a surface, no
 object). RANSAC over the candidates' heights finds the dominant near-horizontal plane;
 its inliers seed a region growing over candidates whose neighbours differ by at most
 the robot's step height, so a ramp or a low sill joins the floor, while a table top or
-the top of a box (cut off by its vertical faces) does not. Planes are then fitted to
-the floor region by sequential RANSAC and reported (the floor, a ramp, a raised part).
+the top of a box (cut off by its vertical faces) does not. The growth also crosses a
+cell without any hit (a gap between the laser's lines, which cut a ramp seen from afar
+into islands) to a candidate two cells away, if the height between them changes no
+faster than `max_slope` allows (a chain of such jumps does not climb a step's face).
+Planes are then fitted to the floor region by sequential RANSAC and reported (the
+floor, a ramp, a raised part).
 Cells without observed floor (under objects, under occluded table tops) take the height
 of the nearest floor cell within `fill_radius`, and beyond it that of the largest plane.
 
@@ -428,7 +432,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         close = np.zeros((ny, nx), bool)
         close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
-        is_floor = nk.grow_region(level, seeds, robot.step_height)
+        is_floor = nk.grow_region(level, seeds, robot.step_height, layers.nlev == 0,
+                                   math.tan(params.max_slope) * res)
         joined = nk.touching_floor(cand, is_floor, bridges, robot.step_height)
         is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
         bridges &= ~joined

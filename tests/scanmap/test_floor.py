@@ -160,21 +160,45 @@ def test_grow_region_matches_a_breadth_first_reference():
     rng = np.random.default_rng(4)
     heights = np.cumsum(rng.normal(0, 0.03, (25, 25)), axis=1).astype(np.float32)
     heights[rng.random((25, 25)) < 0.2] = np.nan
+    empty = np.isnan(heights) & (rng.random((25, 25)) < 0.5)  # some have hits, not floor
     seeds = np.zeros((25, 25), bool)
     seeds[12, 12] = seeds[3, 20] = True
-    got = nk.grow_region(heights, seeds, 0.05)
+    got = nk.grow_region(heights, seeds, 0.05, empty, 0.02)
     inside = seeds.copy()
     queue = deque(zip(*np.nonzero(seeds), strict=True))
     while queue:
         y, x = queue.popleft()
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                yy, xx = y + dy, x + dx
-                if 0 <= yy < 25 and 0 <= xx < 25 and not inside[yy, xx] \
-                        and abs(heights[yy, xx] - heights[y, x]) <= 0.05:
-                    inside[yy, xx] = True
-                    queue.append((yy, xx))
+        for yy, xx in np.ndindex(25, 25):
+            dy, dx = yy - y, xx - x
+            if max(abs(dy), abs(dx)) > 2 or inside[yy, xx] \
+                    or not abs(heights[yy, xx] - heights[y, x]) <= 0.05:
+                continue
+            between = {(y + round(t * dy), x + round(t * dx)) for t in (0.4, 0.6)}
+            if max(abs(dy), abs(dx)) == 2 and not (
+                    all(empty[c] for c in between)
+                    and abs(heights[yy, xx] - heights[y, x]) <= 0.02 * math.hypot(dy, dx)):
+                continue
+            inside[yy, xx] = True
+            queue.append((yy, xx))
     np.testing.assert_array_equal(got, inside)
+
+
+def test_the_floor_grows_across_a_cell_without_hits_but_not_over_a_step():
+    # Floor at 0 left of column 5, column 5 without any hit, a surface right of it at
+    # `right`: joined when it rises as a floor may (max_rise per cell), not when steeper
+    # though within a step (a step's face: 0, -4, -8 cm down a chain of jumps), and never
+    # across a cell that holds hits (a step's face, removed from the candidates)
+    for right, hits, joined in ((0.025, False, True), (0.045, False, False), (0.0, True, False)):
+        heights = np.zeros((7, 11), np.float32)
+        heights[:, 5] = np.nan
+        heights[:, 6:] = right
+        seeds = np.zeros((7, 11), bool)
+        seeds[3, 0] = True
+        empty = np.zeros((7, 11), bool)
+        empty[:, 5] = not hits
+        got = nk.grow_region(heights, seeds, 0.05, empty, 0.0134)  # tan(15 deg) x 5 cm
+        assert got[:, :5].all() and not got[:, 5].any()
+        assert got[:, 6:].all() == joined and got[:, 6:].any() == joined
 
 
 def ramp_scene() -> S.Scene:
