@@ -19,7 +19,11 @@ both (at a crease the side a cell's height is on holds its own surface alone: th
 row of a steep ramp is steep, not half as steep); a cell steeper than `max_slope` (default 15
 deg) does not join the floor: it is never FREE, and an OBSTACLE where its surface rises
 into the robot's band. So a ramp within max_slope and a step within the robot's step
-height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A step's
+height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A cell
+that holds the edge of a higher step between two floors (the raised end or a side of a
+ramp that ends above the floor beside it: one level from the floor below up to the
+ramp's surface, each within `plane_tolerance` of floor at most two cells away) is floor,
+as both its parts are, and an OBSTACLE: the robot may not cross the step. A step's
 face leaves thin levels at in-between heights in the cells it crosses (0, -2, -6, -8 cm
 down an 8 cm step), each within a step of the next: a candidate within a step of two
 candidates up to two cells apart that differ by more than a step (`bridged_steps`)
@@ -241,8 +245,9 @@ class Segmentation:
 
     floor_height: (ny, nx) float32, NaN where unknown. is_floor: open floor: known floor
     (seen there, stood on, or a small gap in it), nothing is in the robot's band, and
-    nothing may hang above unseen (not the floor under a table). Traversable = is_floor
-    and FREE (the band was seen). slope: (ny, nx) float32 floor slope (rad) of the cells
+    nothing may hang above unseen (not the floor under a table); and the edge of a step
+    between two floors (an OBSTACLE). Traversable = is_floor and FREE (the band was
+    seen). slope: (ny, nx) float32 floor slope (rad) of the cells
     with observed floor, NaN elsewhere.
     state: UNKNOWN / FREE / OBSTACLE / DROP_OFF per cell. points: (ny, nx, 2) float32, the obstacle
     point of each obstacle cell (mean of its hits in the band), the centre elsewhere.
@@ -438,6 +443,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
         bridges &= ~joined
         planes = _planes_of(nk.cell_points(is_floor, cand, xs, ys)[2], params, rng)
+    edges = nk.step_edges(layers.levels, layers.nlev, cand, is_floor, robot.step_height,
+                          params.clearance, params.plane_tolerance)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
     if is_floor.any():
         distance, nearest = distance_transform(is_floor)
@@ -451,6 +458,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         assumed = np.isnan(floor_height)
         floor_height[assumed] = fallback_floor
     stood = _footprint_cells(layers, robot.radius)  # observed floor or not: it stood there
+    edges &= ~stood
     # Below the lowest floor near the cell (a cell between two floors at a step is neither's)
     lowest = morphology.min_filter(np.nan_to_num(floor_height, nan=np.inf), 5)
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
@@ -553,13 +561,14 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                      params.overhang_thickness, layers.origin[0], layers.origin[1], res,
                      state, points, band_logodds, covered, params.min_logodds)
     state[(state == FREE) & unlit] = UNKNOWN
+    state[edges] = OBSTACLE  # floor on both sides, a step the robot cannot take between
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
     state[_pinholes(state, layers.nlev, round(params.max_pinhole / res)) & ~dim] = FREE
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
-                        is_floor=(is_floor | stood | holes) & (state != OBSTACLE) & ~drop
-                        & ~covered,
+                        is_floor=((is_floor | stood | holes) & (state != OBSTACLE) & ~drop
+                                  & ~covered) | edges,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
                         slope=np.where(is_floor, slope, np.nan).astype(np.float32))

@@ -156,6 +156,25 @@ def test_touching_floor_matches_a_numpy_reference(seed, ny, nx):
     assert np.array_equal(got, nk.touching_floor_reference(heights, floor, cells, 0.05))
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 15), st.integers(1, 15), st.integers(1, 3))
+def test_step_edges_match_a_numpy_reference(seed, ny, nx, depth):
+    rng = np.random.default_rng(seed)
+    levels = np.zeros((ny, nx, depth, gk.N_FLOAT_FIELDS), np.float32)
+    low = rng.choice([0.0, 0.1], (ny, nx)) + rng.normal(0.0, 0.02, (ny, nx))
+    levels[..., 0, gk.LO] = low
+    levels[..., 0, gk.HI] = low + rng.uniform(0.0, 0.15, (ny, nx))
+    if depth > 1:
+        levels[..., 1, gk.LO] = levels[..., 0, gk.HI] + rng.uniform(0.0, 0.4, (ny, nx))
+    nlev = rng.integers(0, depth + 1, (ny, nx)).astype(np.uint8)
+    heights = rng.choice([0.0, 0.1], (ny, nx)) + rng.normal(0.0, 0.02, (ny, nx))
+    heights[rng.random((ny, nx)) < 0.2] = np.nan
+    heights = heights.astype(np.float32)
+    floor = (rng.random((ny, nx)) < 0.5) & ~np.isnan(heights)
+    args = (levels, nlev, heights, floor, 0.05, 0.2, 0.03)
+    assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
+
+
 def test_grow_region_matches_a_breadth_first_reference():
     rng = np.random.default_rng(4)
     heights = np.cumsum(rng.normal(0, 0.03, (25, 25)), axis=1).astype(np.float32)

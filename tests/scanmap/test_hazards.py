@@ -19,7 +19,7 @@ from benchmarks.bench_hazards import (
     traversable,
     truth_classes,
 )
-from scanmap.navigation import DROP_OFF, FREE, LETHAL, UNKNOWN, inflate, morphology
+from scanmap.navigation import DROP_OFF, FREE, LETHAL, OBSTACLE, UNKNOWN, inflate, morphology
 from scanmap.navigation.floor import FloorConfig
 from scanmap.navigation.obstacles import ObstacleMap, ObstacleSnapshot, QueryStatus
 from scanmap_driver.sim import RASTER_DROP_OFF, RASTER_FLOOR, Scene, builtin_scene, truth_raster
@@ -346,3 +346,35 @@ def test_gaps_between_the_laser_lines_are_floor_and_truly_free():
         assert (truth[free[label]] == RASTER_FLOOR).all(), label
     assert (free["max_gap"] | ~free["15 cm"]).all()  # only more cells are free
     assert free["max_gap"].sum() > 1.15 * free["15 cm"].sum()  # measured: 3814 against 3109
+
+
+@pytest.mark.parametrize("placed", [(0.0, 0.0, 0.0), (0.021, 0.033, 0.31)])
+def test_a_ramp_ending_in_a_step_is_floor_to_its_edges_and_its_step_never_free(placed):
+    # An 8 deg ramp ending 14 cm above the floor, driven past and looked back on: a cell
+    # holding its raised end or a high side holds the ramp, the face and the floor below
+    # in one level (too thick to be floor); both sides of it are floor (the truth's class
+    # at its centre, whichever side that lies on) and the step between them may not be
+    # crossed, so it is floor and an obstacle
+    rise = math.tan(math.radians(8.0))
+    scene = room({"center": [3.0, 1.0], "size": [1.0, 0.9], "gradient": [rise, 0.0],
+                  "height": 0.5 * rise, "name": "ramp"},
+                 [[0.4 * k, -0.2, 0.0] for k in range(13)]).moved(*placed)
+    raster = truth_raster(scene, low=ROBOT.step_height, high=ROBOT.height)
+    step = list(mapped(scene))[-1]
+    seg = step.seg
+    assert ramp_f1(seg, truth_classes(seg, raster), step.hits, scene) >= 0.97
+    region = scene.floor_regions[0]
+    ny, nx = seg.shape
+    x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
+    y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
+    gx, gy = np.meshgrid(x, y)
+    corners = [(gx + dx, gy + dy) for dx in (-0.025, 0.025) for dy in (-0.025, 0.025)]
+    inside = [region.contains(*corner) for corner in corners]
+    heights = [scene.floor_at(*corner)[0] for corner in corners]
+    across = np.any(inside, axis=0) & ~np.all(inside, axis=0) \
+        & (np.ptp(heights, axis=0) > ROBOT.step_height)  # a step the robot cannot take
+    face = across & (step.layers.levels[..., 0, 1] - step.layers.levels[..., 0, 0]
+                     > FloorConfig().thickness)  # holding the face (the rest saw one side)
+    assert face.sum() > 10 and not (seg.state[face] == FREE).any()
+    # most hold both floors; a few a part of the face only, whose top is no floor
+    assert (seg.is_floor & (seg.state == OBSTACLE))[face].mean() >= 0.75
