@@ -19,6 +19,7 @@ from benchmarks.bench_hazards import (
     traversable,
     truth_classes,
 )
+from scanmap.grid import _kernels as gk
 from scanmap.navigation import DROP_OFF, FREE, LETHAL, OBSTACLE, UNKNOWN, inflate, morphology
 from scanmap.navigation.floor import FloorConfig
 from scanmap.navigation.obstacles import ObstacleMap, ObstacleSnapshot, QueryStatus
@@ -373,8 +374,8 @@ def test_a_ramp_ending_in_a_step_is_floor_to_its_edges_and_its_step_never_free(p
     heights = [scene.floor_at(*corner)[0] for corner in corners]
     across = np.any(inside, axis=0) & ~np.all(inside, axis=0) \
         & (np.ptp(heights, axis=0) > ROBOT.step_height)  # a step the robot cannot take
-    face = across & (step.layers.levels[..., 0, 1] - step.layers.levels[..., 0, 0]
-                     > FloorConfig().thickness)  # holding the face (the rest saw one side)
+    lowest = step.layers.levels[..., 0, :]  # holding the face (the rest saw one side only)
+    face = across & (lowest[..., gk.HI] - lowest[..., gk.LO] > FloorConfig().thickness)
     assert face.sum() > 10 and not (seg.state[face] == FREE).any()
     # most hold both floors; a few a part of the face only, whose top is no floor
     assert (seg.is_floor & (seg.state == OBSTACLE))[face].mean() >= 0.75
