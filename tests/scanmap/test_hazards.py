@@ -365,10 +365,7 @@ def test_a_ramp_ending_in_a_step_is_floor_to_its_edges_and_its_step_never_free(p
     seg = step.seg
     assert ramp_f1(seg, truth_classes(seg, raster), step.hits, scene) >= 0.97
     region = scene.floor_regions[0]
-    ny, nx = seg.shape
-    x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
-    y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
-    gx, gy = np.meshgrid(x, y)
+    gx, gy = np.meshgrid(*step.layers.cell_centers())
     corners = [(gx + dx, gy + dy) for dx in (-0.025, 0.025) for dy in (-0.025, 0.025)]
     inside = [region.contains(*corner) for corner in corners]
     heights = [scene.floor_at(*corner)[0] for corner in corners]

@@ -185,7 +185,8 @@ def test_a_map_file_of_version_2_loads_without_unlit_cells(tmp_path):
 
 def test_points_off_the_laser_plane_are_another_sensors_and_show_nothing_unlit():
     """A cloud read from a bag (not this scanner's triangulated points) is no evidence."""
-    scan = next(ideal_scans(small_patch_scene(0.0, 0.0, 0.5, x=2.0), scans=1)).scan
+    scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
+    scan = next(ideal_scans(scene, scans=1)).scan
     assert len(unlit_floor(scan, MODEL))
     rng = np.random.default_rng(0)
     moved = Scan(**{name: getattr(scan, name) for name in
@@ -197,7 +198,8 @@ def test_points_off_the_laser_plane_are_another_sensors_and_show_nothing_unlit()
 def test_a_stripe_that_misses_the_floor_often_shows_nothing_unlit():
     """Rendered frames return the floor on at most 76 % of the lines at any range: where
     the floor returns that unreliably, no run without a return means a dark patch."""
-    scan = next(ideal_scans(small_patch_scene(0.0, 0.0, 0.5, x=2.0), scans=1)).scan
+    scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
+    scan = next(ideal_scans(scene, scans=1)).scan
     on_floor = np.abs(scan.points[:, 2]) < 0.01
     dropped = on_floor & (np.random.default_rng(0).random(len(scan)) < 0.3)
     assert len(unlit_floor(scan, MODEL)) and not len(unlit_floor(scan.select(~dropped), MODEL))
@@ -248,17 +250,18 @@ def test_the_compiled_image_lines_are_those_of_project_head_points_with_distorti
 def test_nan_and_inf_points_or_headings_mark_nothing_false():
     """Non-finite points return no line; a frame whose heading is not finite is not
     judged: neither marks floor that was lit."""
-    scan = next(ideal_scans(small_patch_scene(0.0, 0.0, 0.5, x=2.0), scans=1)).scan
+    scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
+    scan = next(ideal_scans(scene, scans=1)).scan
     found = unlit_floor(scan, MODEL)
     fields = {name: getattr(scan, name) for name in ("colors", "time", "frame_index",
                                                      "range_sigma")}
     points = scan.points.copy()
     points[::50], points[1::50] = np.nan, np.inf
     damaged = unlit_floor(Scan(points=points, heading=scan.heading, **fields), MODEL)
-    assert len(damaged) and near_patch(damaged, small_patch_scene(0.0, 0.0, 0.5, x=2.0)).all()
+    assert len(damaged) and near_patch(damaged, scene).all()
     assert len(damaged) <= len(found) + 10
     heading = scan.heading.copy()
     heading[scan.frame_index % 3 == 0] = np.nan  # a third of the frames
     unjudged = unlit_floor(Scan(points=scan.points, heading=heading, **fields), MODEL)
     assert np.isfinite(unjudged).all() and 0 < len(unjudged) < len(found)  # 105 of 152
-    assert near_patch(unjudged, small_patch_scene(0.0, 0.0, 0.5, x=2.0)).all()
+    assert near_patch(unjudged, scene).all()
