@@ -55,8 +55,10 @@ floor beside it (a gap between the laser's samples; a line grazing a hole's corn
 a few cm down its far wall), away from any drop-off, and a cell without any hit between two
 such cells at most three cells (15 cm) apart along a row, a column or a diagonal, with
 heights within a step (the gaps between samples too narrow to hold a cell without a hit
-next to it); last, a patch without any
-hit at most `max_pinhole` (15 cm) each side whose every neighbour ended FREE. Every
+next to it), unless it touches a drop-off or a cell whose hits reach that far below the
+floor beside it (such a span may cross a turned hole's corner, from its near rim's
+floor to the top of its far wall); last, a patch without any hit at most `max_pinhole`
+(15 cm) each side whose every neighbour ended FREE. Every
 other cell - black carpet, a hole nothing returned from, the floor beyond the last floor
 hit before a drop-off, floor never lit at all - stays UNKNOWN however much of the band
 rays saw over it (its floor height carried from nearby floor is an assumption, not a
@@ -510,6 +512,9 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     lone = ~morphology.within_distance(observed, 1.5)
     seen_floor = nk.interpolated(known_floor, informative | lone, floor_height, 2,
                                  robot.step_height, True, nk.NO_SAMPLES)
+    # but not next to a sign of a hole (a drop-off, a dip): the span may cross the hole's
+    # corner, from its near rim's floor to the top of its far wall
+    seen_floor &= known_floor | ~morphology.dilate(drop | dips)
     drop |= _sunk(bare & ~holes & ~is_floor & ~stood & ~assumed, layers, is_floor, lowest,
                   drop, round(params.max_hole / res), params.plane_tolerance)
     gap = round(params.max_gap / res)

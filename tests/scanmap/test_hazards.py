@@ -19,6 +19,7 @@ from benchmarks.bench_hazards import (
     traversable,
     truth_classes,
 )
+from benchmarks.random_rooms import mixed_room
 from scanmap.grid import _kernels as gk
 from scanmap.navigation import DROP_OFF, FREE, LETHAL, OBSTACLE, UNKNOWN, inflate, morphology
 from scanmap.navigation.floor import FloorConfig
@@ -376,3 +377,13 @@ def test_a_ramp_ending_in_a_step_is_floor_to_its_edges_and_its_step_never_free(p
     assert face.sum() > 10 and not (seg.state[face] == FREE).any()
     # most hold both floors; a few a part of the face only, whose top is no floor
     assert (seg.is_floor & (seg.state == OBSTACLE))[face].mean() >= 0.75
+
+
+@pytest.mark.parametrize(("seed", "scans"), [(201, None), (215, 17)])
+def test_no_corner_of_a_turned_hole_is_free_in_the_mixed_rooms_that_showed_one(seed, scans):
+    # Mixed rooms' turned holes (seeds 201 and 215; 14 and 47 cm deep): a ray that crosses
+    # a corner drops only a few cm before it lands on the far wall, so the corner's cells
+    # lie between a rim cell holding the near rim's floor and one holding the far wall's
+    # top. That span of two cells was bridged as a gap between samples: a cell 7 cm inside
+    # both edges FREE at one scan (201) and from the 17th on (215)
+    assert hazard_run(scans, scene=mixed_room(seed))["drop_free_any_scan"] == 0
