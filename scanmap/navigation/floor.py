@@ -179,8 +179,9 @@ class FloorConfig:
     hits nearest the opening lie no farther out), from the far edge of an end cell without
     floor hits (it may be lit on part of its width only), away from any drop-off, surface
     below the floor model, level reaching more than a step below it or level reaching more than
-    plane_tolerance below the floor beside it (`_dips`) (max_gap plus two cells, as
-    wide as a hole without unobserved space wider than max_gap in it) and from any such
+    plane_tolerance below the floor beside it (`_dips`) (the diagonal of a hole max_gap
+    plus two cells wide, as wide as a hole without unobserved space wider than max_gap in
+    it: turned to the lines, its far wall lies that far from its near corner) and from any such
     wider unobserved space (max_gap): this scanner's lines lie r * 2 pi / 53 apart on the
     floor at range r (0.19 m at 1.6 m, 0.3 m at 2.5 m), so a hole of max_gap seen from
     2.5 m or nearer is crossed by a line and shows itself (below the floor, or a
@@ -532,12 +533,12 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         if lines.any():  # not near a sign of a hole, nor within max_gap of a wider gap
             # through cells without a hit (not of the space behind a wall). A hole too
             # narrow to hold a `wide` cell (under gap + 2 cells) shows at most its far
-            # wall, up to its width from a span along its near rim: the signs reach that
-            # far, measured against each cell's own floor (the lowest around it may be a
-            # far wall's top taken for floor)
+            # wall, up to its diagonal from a span across its near corner: the signs reach
+            # that far, measured against each cell's own floor (the lowest around it may
+            # be a far wall's top taken for floor)
             lines &= ~morphology.within_distance(drop | dips | _below_model(
                 layers, is_floor, floor_height, params.plane_tolerance) | _reaching_below(
-                layers, is_floor, floor_height, robot.step_height), gap + 2)
+                layers, is_floor, floor_height, robot.step_height), (gap + 2) * math.sqrt(2.0))
             lines &= ~morphology.dilate(wide, gap, within=~observed)
         seen_floor |= lines
     unlit = (probed & bare) | steep | bridges

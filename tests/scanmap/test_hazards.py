@@ -379,6 +379,22 @@ def test_a_ramp_ending_in_a_step_is_floor_to_its_edges_and_its_step_never_free(p
     assert (seg.is_floor & (seg.state == OBSTACLE))[face].mean() >= 0.75
 
 
+def test_the_corner_of_a_turned_hole_is_never_free():
+    # A mixed room's hole (seed 209's, 0.46 m x 0.37 m, 16 cm deep) turned 28 deg to the
+    # cells, alone in a room: at the 7th scan, 1.65 m away, no laser line crossed its near
+    # corner, and the gap between two lines was bridged from rim to rim across it. The
+    # signs of the hole (its far wall's hits) lay 8.1 cells away along its diagonal, just
+    # beyond the max_gap + 2 cells the bridging kept from them: a cell 7 cm inside both
+    # edges FREE
+    poses = [[6.376, -0.1197, -0.0275], [6.867, -0.0551, -0.0014], [7.357, 0.0171, 0.0723],
+             [7.848, 0.087, -0.1736], [8.338, 0.1446, 0.0537], [8.829, 0.1819, 0.1517],
+             [9.319, 0.1936, -0.1697], [9.81, 0.1781, -0.1488], [10.3, 0.1375, 0.0989],
+             [10.791, 0.0775, -0.0197]]
+    scene = room({"center": [4.069, 1.545], "size": [0.463, 0.37], "yaw": 0.486,
+                  "height": -0.161, "name": "hole"}, [[x - 6.5, y, a] for x, y, a in poses])
+    assert_no_drop_off_free(scene)
+
+
 @pytest.mark.parametrize(("seed", "scans"), [(201, None), (215, 17)])
 def test_no_corner_of_a_turned_hole_is_free_in_the_mixed_rooms_that_showed_one(seed, scans):
     # Mixed rooms' turned holes (seeds 201 and 215; 14 and 47 cm deep): a ray that crosses
