@@ -572,8 +572,10 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     and across the `empty` cells (no hit: a gap between the laser's lines) to the cells two
     away whose heights differ by at most `max_rise` per cell of the distance (a floor's
     slope, not a step's face), where every cell between lies in `empty` (its midpoint, or
-    both cells beside a knight's move). Jumps are tried only from the few candidates the
-    neighbours alone did not reach (a jump is the same from either end), and onwards."""
+    both cells beside a knight's move), and each end is within max_step of the cells next
+    to the other that are within max_step of it (`_spans_no_step`). Jumps are tried only
+    from the few candidates the neighbours alone did not reach (a jump is the same from
+    either end), and onwards."""
     ny, nx = heights.shape
     inside = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
@@ -589,7 +591,7 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
             if inside[y, x] or np.isnan(heights[y, x]):
                 continue
             for k in range(_JUMPS.shape[0]):
-                if _can_jump(heights, empty, max_rise, y, x, k) \
+                if _can_jump(heights, empty, max_step, max_rise, y, x, k) \
                         and inside[y + _JUMPS[k, 0], x + _JUMPS[k, 1]]:
                     inside[y, x] = True
                     queue[tail] = y * nx + x
@@ -618,7 +620,7 @@ def _spread(heights: np.ndarray, inside: np.ndarray, queue: np.ndarray, head: in
                     tail += 1
         for k in range(_JUMPS.shape[0] if jumps else 0):
             yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
-            if _can_jump(heights, empty, max_rise, y, x, k) and not inside[yy, xx]:
+            if _can_jump(heights, empty, max_step, max_rise, y, x, k) and not inside[yy, xx]:
                 inside[yy, xx] = True
                 queue[tail] = yy * nx + xx
                 tail += 1
@@ -626,14 +628,34 @@ def _spread(heights: np.ndarray, inside: np.ndarray, queue: np.ndarray, head: in
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _can_jump(heights: np.ndarray, empty: np.ndarray, max_rise: float, y: int, x: int,
-              k: int) -> bool:
+def _can_jump(heights: np.ndarray, empty: np.ndarray, max_step: float, max_rise: float,
+              y: int, x: int, k: int) -> bool:
     """Whether `grow_region` may jump from (y, x) by _JUMPS[k] (inside the grid)."""
     ny, nx = heights.shape
     yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
     return 0 <= yy < ny and 0 <= xx < nx and empty[y + _JUMPS[k, 2], x + _JUMPS[k, 3]] \
         and empty[y + _JUMPS[k, 4], x + _JUMPS[k, 5]] \
-        and abs(heights[yy, xx] - heights[y, x]) <= max_rise * _JUMP_LENGTHS[k]
+        and abs(heights[yy, xx] - heights[y, x]) <= max_rise * _JUMP_LENGTHS[k] \
+        and _spans_no_step(heights, y, x, heights[yy, xx], max_step) \
+        and _spans_no_step(heights, yy, xx, heights[y, x], max_step)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _spans_no_step(heights: np.ndarray, y: int, x: int, far: float, max_step: float
+                   ) -> bool:
+    """Whether every cell next to (y, x) within max_step of it is within max_step of the
+    height `far` a jump from (y, x) lands on. A level a step's face leaves in a cell (-3 cm
+    beside the floor at 0) is within a step of both floors, and a jump from it across a
+    gap between the laser's lines would land on the floor below (-6 cm): the jump, not
+    the cells next to each other, would bridge the step (`bridged_steps`)."""
+    ny, nx = heights.shape
+    near = heights[y, x]
+    for yy in range(max(y - 1, 0), min(y + 2, ny)):
+        for xx in range(max(x - 1, 0), min(x + 2, nx)):
+            h = heights[yy, xx]
+            if abs(h - near) <= max_step and abs(h - far) > max_step:  # False for NaN
+                return False
+    return True
 
 
 @njit(cache=True, nogil=True)

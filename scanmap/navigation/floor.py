@@ -7,7 +7,10 @@ the robot's step height, so a ramp or a low sill joins the floor, while a table 
 the top of a box (cut off by its vertical faces) does not. The growth also crosses a
 cell without any hit (a gap between the laser's lines, which cut a ramp seen from afar
 into islands) to a candidate two cells away, if the height between them changes no
-faster than `max_slope` allows (a chain of such jumps does not climb a step's face).
+faster than `max_slope` allows (a chain of such jumps does not climb a step's face),
+and each end lies within a step of the cells beside the other end that are within a
+step of it (a jump from a level a step's face left in a cell, 3 cm down beside the
+floor, does not land on the floor 6 cm below).
 Planes are then fitted to the floor region by sequential RANSAC and reported (the
 floor, a ramp, a raised part).
 Cells without observed floor (under objects, under occluded table tops) take the height

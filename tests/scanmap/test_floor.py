@@ -175,6 +175,16 @@ def test_step_edges_match_a_numpy_reference(seed, ny, nx, depth):
     assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
 
 
+def spans_no_step(heights: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> bool:
+    """No cell next to `start` (in the grid) lies within 5 cm of it and more than 5 cm from
+    `end`."""
+    y, x = start
+    near = heights[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2]
+    with np.errstate(invalid="ignore"):
+        return not ((np.abs(near - heights[start]) <= 0.05)
+                    & (np.abs(near - heights[end]) > 0.05)).any()
+
+
 def test_grow_region_matches_a_breadth_first_reference():
     rng = np.random.default_rng(4)
     heights = np.cumsum(rng.normal(0, 0.03, (25, 25)), axis=1).astype(np.float32)
@@ -195,7 +205,9 @@ def test_grow_region_matches_a_breadth_first_reference():
             between = {(y + round(t * dy), x + round(t * dx)) for t in (0.4, 0.6)}
             if max(abs(dy), abs(dx)) == 2 and not (
                     all(empty[c] for c in between)
-                    and abs(heights[yy, xx] - heights[y, x]) <= 0.02 * math.hypot(dy, dx)):
+                    and abs(heights[yy, xx] - heights[y, x]) <= 0.02 * math.hypot(dy, dx)
+                    and spans_no_step(heights, (y, x), (yy, xx))
+                    and spans_no_step(heights, (yy, xx), (y, x))):
                 continue
             inside[yy, xx] = True
             queue.append((yy, xx))
@@ -218,6 +230,24 @@ def test_the_floor_grows_across_a_cell_without_hits_but_not_over_a_step():
         got = nk.grow_region(heights, seeds, 0.05, empty, 0.0134)  # tan(15 deg) x 5 cm
         assert got[:, :5].all() and not got[:, 5].any()
         assert got[:, 6:].all() == joined and got[:, 6:].any() == joined
+
+
+def test_the_floor_does_not_jump_from_a_step_face_down_to_the_floor_below():
+    # A mixed room's (seed 303) 6 cm step down: the face left a level 3 cm down in a cell
+    # beside the floor, within a step of it (the growth took it) and within max_rise of
+    # the floor below across a gap between the laser's lines (-5.5 cm here): the jump
+    # carried the floor onto the whole step-down area, FREE at two scans. A gap on a ramp
+    # (each cell 1 cm above the last) is still crossed
+    face = np.zeros((7, 11), np.float32)
+    face[:, 5], face[:, 7:] = -0.03, -0.055
+    ramp = np.tile(0.01 * np.arange(11, dtype=np.float32), (7, 1))  # 11 deg
+    for heights, joined in ((face, False), (ramp, True)):
+        heights[:, 6] = np.nan
+        seeds = np.zeros((7, 11), bool)
+        seeds[3, 0] = True
+        got = nk.grow_region(heights, seeds, 0.05, np.isnan(heights), 0.0134)
+        assert got[:, :6].all() and not got[:, 6].any()
+        assert got[:, 7:].any() == joined
 
 
 def ramp_scene() -> S.Scene:

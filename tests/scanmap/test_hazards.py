@@ -395,11 +395,13 @@ def test_the_corner_of_a_turned_hole_is_never_free():
     assert_no_drop_off_free(scene)
 
 
-@pytest.mark.parametrize(("seed", "scans"), [(201, None), (215, 17)])
-def test_no_corner_of_a_turned_hole_is_free_in_the_mixed_rooms_that_showed_one(seed, scans):
-    # Mixed rooms' turned holes (seeds 201 and 215; 14 and 47 cm deep): a ray that crosses
-    # a corner drops only a few cm before it lands on the far wall, so the corner's cells
-    # lie between a rim cell holding the near rim's floor and one holding the far wall's
-    # top. That span of two cells was bridged as a gap between samples: a cell 7 cm inside
-    # both edges FREE at one scan (201) and from the 17th on (215)
+@pytest.mark.parametrize(("seed", "scans"), [(201, None), (215, 17), (303, 10)])
+def test_no_drop_off_is_free_in_the_mixed_rooms_that_showed_one(seed, scans):
+    # Seeds 201 and 215, turned holes 14 and 47 cm deep: a ray that crosses a corner
+    # drops only a few cm before it lands on the far wall, so the corner's cells lie
+    # between a rim cell holding the near rim's floor and one holding the far wall's top.
+    # That span of two cells was bridged as a gap between samples: a cell 7 cm inside both
+    # edges FREE at one scan (201) and from the 17th on (215). Seed 303, a step down 6.2
+    # cm deep: the growth jumped a gap between the laser's lines from a level its face left
+    # 3 cm down to the floor below: 200 and 205 of its cells FREE at the 9th and 10th scans
     assert hazard_run(scans, scene=mixed_room(seed))["drop_free_any_scan"] == 0
