@@ -185,8 +185,7 @@ def test_a_map_file_of_version_2_loads_without_unlit_cells(tmp_path):
 
 def test_points_off_the_laser_plane_are_another_sensors_and_show_nothing_unlit():
     """A cloud read from a bag (not this scanner's triangulated points) is no evidence."""
-    scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
-    scan = next(ideal_scans(scene, scans=1)).scan
+    scan = next(ideal_scans(small_patch_scene(0.0, 0.0, 0.5, x=2.0), scans=1)).scan
     assert len(unlit_floor(scan, MODEL))
     rng = np.random.default_rng(0)
     moved = Scan(**{name: getattr(scan, name) for name in
@@ -198,8 +197,7 @@ def test_points_off_the_laser_plane_are_another_sensors_and_show_nothing_unlit()
 def test_a_stripe_that_misses_the_floor_often_shows_nothing_unlit():
     """Rendered frames return the floor on at most 76 % of the lines at any range: where
     the floor returns that unreliably, no run without a return means a dark patch."""
-    scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
-    scan = next(ideal_scans(scene, scans=1)).scan
+    scan = next(ideal_scans(small_patch_scene(0.0, 0.0, 0.5, x=2.0), scans=1)).scan
     on_floor = np.abs(scan.points[:, 2]) < 0.01
     dropped = on_floor & (np.random.default_rng(0).random(len(scan)) < 0.3)
     assert len(unlit_floor(scan, MODEL)) and not len(unlit_floor(scan.select(~dropped), MODEL))
