@@ -56,11 +56,12 @@ m, each side) enclosed by floor whose heights differ by at most a step, or whose
 within two cells are all such floor, none reaching more than `plane_tolerance` below the
 floor beside it (a gap between the laser's samples; a line grazing a hole's corner lands
 a few cm down its far wall), away from any drop-off, and a cell without any hit between two
-such cells at most three cells (15 cm) apart along a row, a column or a diagonal, with
-heights within a step (the gaps between samples too narrow to hold a cell without a hit
-next to it), unless it touches a drop-off or a cell whose hits reach that far below the
-floor beside it (such a span may cross a turned hole's corner, from its near rim's
-floor to the top of its far wall); last, a patch without any hit at most `max_pinhole`
+such cells along a row, a column or a diagonal whose floor hits lie at most three cells (15
+cm) apart (from a cell's far edge where it holds none), with heights within a step (the
+gaps between samples too narrow to hold a cell without a hit next to it), unless it
+touches a drop-off or a cell whose hits reach that far below the floor beside it (such a
+span may cross a turned hole's corner, from its near rim's floor to the top of its far
+wall); last, a patch without any hit at most `max_pinhole`
 (15 cm) each side whose every neighbour ended FREE. Every
 other cell - black carpet, a hole nothing returned from, the floor beyond the last floor
 hit before a drop-off, floor never lit at all - stays UNKNOWN however much of the band
@@ -506,16 +507,17 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                        floor_height, drop, dips, round(params.max_hole / res),
                        robot.step_height)
     # No return is not free: the floor seen (a hit there), a gap, stood on, assumed, or
-    # between two such cells: at most three cells apart anywhere, at most max_gap apart
-    # (the spacing of the laser's lines) away from any sign of a hole
+    # between two such cells: their floor hits at most three cells apart anywhere, at most
+    # max_gap apart (the spacing of the laser's lines) away from any sign of a hole
     known_floor = is_floor | holes | stood | assumed
     informative = (layers.nlev > 0) | drop
     # A cell farther than half a span from every known or hit cell lies on no such span:
     # passed to `interpolated` as a hit, it is skipped (the result is the same)
     observed = known_floor | informative
-    lone = ~morphology.within_distance(observed, 1.5)
-    seen_floor = nk.interpolated(known_floor, informative | lone, floor_height, 2,
-                                 robot.step_height, True, nk.NO_SAMPLES)
+    lone = ~morphology.within_distance(observed, 2.0)
+    samples = _floor_samples(layers, is_floor)
+    seen_floor = nk.interpolated(known_floor, informative | lone, floor_height, 1,
+                                 robot.step_height, True, samples)
     # but not next to a sign of a hole (a drop-off, a dip): the span may cross the hole's
     # corner, from its near rim's floor to the top of its far wall
     seen_floor &= known_floor | ~morphology.dilate(drop | dips)
@@ -531,8 +533,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # An opening of at most gap cells (`interpolated`'s size + 2), measured between
         # the floor hits of the cells at its ends (from the far edge of an end without)
         lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
-                                robot.step_height, True, _floor_samples(layers, is_floor)
-                                ) & ~seen_floor & ~foot
+                                robot.step_height, True, samples) & ~seen_floor & ~foot
         if lines.any():  # not near a sign of a hole, nor within max_gap of a wider gap
             # through cells without a hit (not of the space behind a wall). A hole too
             # narrow to hold a `wide` cell (under gap + 2 cells) shows at most its far

@@ -441,3 +441,30 @@ def test_the_gap_between_two_laser_lines_is_floor_when_their_hits_lie_max_gap_ap
     state = seg.state[np.ix_(between, middle)]
     assert (state == floor_module.FREE).all() == bridged
     assert (state == floor_module.UNKNOWN).all() == (not bridged)
+
+
+@pytest.mark.parametrize(("spacing", "bridged"), [(0.14, True), (0.18, False)])
+def test_a_narrow_gap_is_floor_when_its_floor_hits_lie_at_most_15_cm_apart(spacing, bridged):
+    # The narrow rule alone (max_gap 0.1 m turns the laser lines' rule off): floor lines
+    # along x 0.14 m apart hit to hit, their cells 2 or 3 apart, leave floor between; 0.18
+    # m apart, cells 3 or 4 apart, they do not, though the cells of a pair 3 apart lie
+    # within three cells of each other (a pit's turned corner between two rim cells whose
+    # floor hits lie on their outer edges: random room 435)
+    grid = HeightGrid(GridConfig(extent=20.0))
+    x = np.arange(1.0, 2.0, 0.01)
+    ys = 0.025 + spacing * np.arange(5)
+    floor = np.column_stack([np.tile(x, 5), np.repeat(ys, len(x)), np.zeros(5 * len(x))])
+    wy, wz = np.meshgrid(np.arange(-1.0, 2.0, 0.01), np.arange(0.1, 1.2, 0.02))
+    wall = np.column_stack([np.full(wy.size, 2.6), wy.ravel(), wz.ravel()])
+    grid.insert(np.vstack([floor, wall]), np.array([0.0, ys.mean(), 1.0]), 1.0)
+    seg = segment(grid.layers((-0.5, -1.0, 3.0, 2.0)), params=FloorConfig(max_gap=0.1))
+    x_c = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution
+    y_c = seg.origin[1] + (np.arange(seg.shape[0]) + 0.5) * seg.resolution
+    lit = np.floor((ys - seg.origin[1]) / seg.resolution).astype(int)  # the lines' rows
+    assert set(np.diff(lit)) == ({2, 3} if bridged else {3, 4})
+    middle = (x_c > 1.35) & (x_c < 1.65)  # away from the lines' ends
+    between = (y_c > ys[0]) & (y_c < ys[-1])
+    between[lit] = False
+    state = seg.state[np.ix_(between, middle)]
+    assert (state == floor_module.FREE).all() == bridged
+    assert (state == floor_module.UNKNOWN).all() == (not bridged)

@@ -19,7 +19,7 @@ from benchmarks.bench_hazards import (
     traversable,
     truth_classes,
 )
-from benchmarks.random_rooms import mixed_room
+from benchmarks.random_rooms import mixed_room, random_room
 from scanmap.grid import _kernels as gk
 from scanmap.navigation import DROP_OFF, FREE, LETHAL, OBSTACLE, UNKNOWN, inflate, morphology
 from scanmap.navigation.floor import FloorConfig
@@ -395,13 +395,18 @@ def test_the_corner_of_a_turned_hole_is_never_free():
     assert_no_drop_off_free(scene)
 
 
-@pytest.mark.parametrize(("seed", "scans"), [(201, None), (215, 17), (303, 10)])
-def test_no_drop_off_is_free_in_the_mixed_rooms_that_showed_one(seed, scans):
-    # Seeds 201 and 215, turned holes 14 and 47 cm deep: a ray that crosses a corner
+@pytest.mark.parametrize(("room", "seed", "scans"), [
+    (mixed_room, 201, None), (mixed_room, 215, 17), (mixed_room, 303, 10),
+    (random_room, 435, 21)])
+def test_no_drop_off_is_free_in_the_rooms_that_showed_one(room, seed, scans):
+    # Mixed rooms 201 and 215, turned holes 14 and 47 cm deep: a ray that crosses a corner
     # drops only a few cm before it lands on the far wall, so the corner's cells lie
     # between a rim cell holding the near rim's floor and one holding the far wall's top.
     # That span of two cells was bridged as a gap between samples: a cell 7 cm inside both
-    # edges FREE at one scan (201) and from the 17th on (215). Seed 303, a step down 6.2
-    # cm deep: the growth jumped a gap between the laser's lines from a level its face left
-    # 3 cm down to the floor below: 200 and 205 of its cells FREE at the 9th and 10th scans
-    assert hazard_run(scans, scene=mixed_room(seed))["drop_free_any_scan"] == 0
+    # edges FREE at one scan (201) and from the 17th on (215). Mixed room 303, a step down
+    # 6.2 cm deep: the growth jumped a gap between the laser's lines from a level its face
+    # left 3 cm down to the floor below: 200 and 205 of its cells FREE at the 9th and 10th
+    # scans. Random room 435: no line crossed a pit's near corner from the 21st scan on,
+    # and two cells of it lay between rim cells whose floor hits, on their outer edges,
+    # lay 19.6 cm apart: one cell 7 cm inside both edges FREE
+    assert hazard_run(scans, scene=room(seed))["drop_free_any_scan"] == 0
