@@ -41,7 +41,8 @@ between two floor cells at most `max_hole` apart (the shadow of the rim: not the
 between the laser's samples, nor the shadow of an object standing beside the
 drop-off), and from that shadow one cell on up to the rim but for the gaps between floor
 samples (below), so its edge is within a cell of the last floor seen (the cells showing
-the drop-off themselves are where it is: no cell on from them). It spreads across the
+the drop-off themselves are where it is: no cell on from them, nor into a cell beside one
+in a row or a column, as along a hole's side wall). It spreads across the
 scanner's view (between its lines) but not away from where the robot stood, beyond the
 cells that show it (past a hole's far wall the floor is lit, its unlit cells are gaps
 between the lines), and towards it only across the rim's shadow (`rim_shadow`): rays
@@ -489,8 +490,9 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         spread = morphology.dilate_in_range(drop, shadow, ranges, near, ranges + 1.0,
                                             max(round(params.drop_reach / res), 1))
         drop |= spread
-        # and from the shadow up to the rim (where the drop-off shows itself, it is there)
-        rim = (layers.nlev == 0) & ~nk.interpolated(
+        # and from the shadow up to the rim (where the drop-off shows itself, it is there:
+        # not a cell on from it, beside it in a row or a column, as at a hole's side wall)
+        rim = (layers.nlev == 0) & ~morphology.within_distance(seeds, 1.0) & ~nk.interpolated(
             known, (layers.nlev > 0) | drop | _beyond_spans(known, 2), floor_height, 2,
             robot.step_height, False, nk.NO_SAMPLES)
         drop |= morphology.dilate_in_range(spread & ~seeds, rim, ranges, near, ranges, 1)

@@ -410,3 +410,11 @@ def test_no_drop_off_is_free_in_the_rooms_that_showed_one(room, seed, scans):
     # and two cells of it lay between rim cells whose floor hits, on their outer edges,
     # lay 19.6 cm apart: one cell 7 cm inside both edges FREE
     assert hazard_run(scans, scene=room(seed))["drop_free_any_scan"] == 0
+
+
+def test_a_drop_off_reaches_no_cell_on_from_the_cells_that_show_it():
+    # Mixed room 216, a hole's side wall seen at a slant from 1.8 m: its hits show the
+    # drop-off in the cells along the wall; the rule that carries the drop-off from the
+    # rim's shadow one cell on, up to the last floor seen, carried it diagonally into a
+    # cell beside those hits, on the floor beyond the wall: 1.6 cells off the true edge
+    assert hazard_run(23, scene=mixed_room(216))["edge_error_cells"] <= math.sqrt(2.0)
