@@ -352,9 +352,11 @@ def step_edges(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarray,
                tolerance: float) -> np.ndarray:
     """Cells off the floor holding the edge of a step higher than `step` between two
     floors (the raised end or a side of a ramp above the floor beside it): their lowest
-    level spans more than the step, nothing lies within `clearance` above it, and its top
-    and its bottom each lie within `tolerance` of the floor height (`heights`) of a cell
-    at most two away (a face on the boundary of two cells puts its hits in both)."""
+    level spans more than the step, nothing lies within `clearance` above it, its top
+    lies within `tolerance` of the floor height (`heights`) of a cell at most two away (a
+    face on the boundary of two cells puts its hits in both), and its bottom no more than
+    `tolerance` below the lowest floor at most two cells away: the face from the floor
+    below, or only its upper part where the rays saw no more of it."""
     ny, nx = nlev.shape
     out = np.zeros((ny, nx), np.bool_)
     for y in range(ny):
@@ -365,13 +367,13 @@ def step_edges(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarray,
             lo, hi = levels[y, x, 0, gk.LO], levels[y, x, 0, gk.HI]
             if hi - lo <= step or (n > 1 and levels[y, x, 1, gk.LO] - hi < clearance):
                 continue
-            top = bottom = False
+            top, lowest = False, np.inf
             for yy in range(max(y - 2, 0), min(y + 3, ny)):
                 for xx in range(max(x - 2, 0), min(x + 3, nx)):
                     if is_floor[yy, xx]:
                         top |= abs(heights[yy, xx] - hi) <= tolerance
-                        bottom |= abs(heights[yy, xx] - lo) <= tolerance
-            out[y, x] = top and bottom
+                        lowest = min(lowest, heights[yy, xx])
+            out[y, x] = top and lo >= lowest - tolerance
     return out
 
 
@@ -384,14 +386,14 @@ def step_edges_reference(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarr
     above = levels[:, :, 1, gk.LO] if levels.shape[2] > 1 else np.full((ny, nx), np.inf)
     spans = (nlev > 0) & ~is_floor & (hi - lo > step) & ((nlev == 1) | (above - hi >= clearance))
     floor = np.pad(np.where(is_floor, heights, np.nan), 2, constant_values=np.nan)
-    top, bottom = np.zeros((ny, nx), bool), np.zeros((ny, nx), bool)
+    top, lowest = np.zeros((ny, nx), bool), np.full((ny, nx), np.inf)
     with np.errstate(invalid="ignore"):
         for dy in range(5):
             for dx in range(5):
                 near = floor[dy:dy + ny, dx:dx + nx]
                 top |= np.abs(near - hi) <= tolerance
-                bottom |= np.abs(near - lo) <= tolerance
-    return spans & top & bottom
+                lowest = np.fmin(lowest, near)
+    return spans & top & (lo >= lowest - tolerance)
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -24,8 +24,9 @@ deg) does not join the floor: it is never FREE, and an OBSTACLE where its surfac
 into the robot's band. So a ramp within max_slope and a step within the robot's step
 height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A cell
 that holds the edge of a higher step between two floors (the raised end or a side of a
-ramp that ends above the floor beside it: one level from the floor below up to the
-ramp's surface, each within `plane_tolerance` of floor at most two cells away) is floor,
+ramp that ends above the floor beside it: one level spanning more than a step, up to
+within `plane_tolerance` of the ramp's surface and from the floor below, or from higher
+up its face where the rays saw no lower, both floors at most two cells away) is floor,
 as both its parts are, and an OBSTACLE: the robot may not cross the step. A step's
 face leaves thin levels at in-between heights in the cells it crosses (0, -2, -6, -8 cm
 down an 8 cm step), each within a step of the next: a candidate within a step of two

@@ -175,6 +175,28 @@ def test_step_edges_match_a_numpy_reference(seed, ny, nx, depth):
     assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
 
 
+@pytest.mark.parametrize(("bottom", "floor_below", "edge"), [
+    (0.0, True, True),     # the whole face, from the floor below to the ramp's top
+    (0.1, True, True),     # only its upper part seen (the rays saw no more of it)
+    (-0.05, True, False),  # reaching below the floor below: not a face between the two
+    (0.1, False, False),   # no floor below within two cells: a box's side, not a step's
+])
+def test_a_step_edge_holds_a_face_or_its_upper_part_between_two_floors(bottom, floor_below,
+                                                                       edge):
+    # A row: the ramp's raised end at 0.18 m (floor), a cell holding its face, then the
+    # floor below (0 m) or more of the ramp
+    levels = np.zeros((1, 5, 1, gk.N_FLOAT_FIELDS), np.float32)
+    levels[0, 2, 0, gk.LO], levels[0, 2, 0, gk.HI] = bottom, 0.18
+    nlev = np.array([[1, 1, 1, 1, 1]], np.uint8)
+    heights = np.array([[0.18, 0.18, np.nan, 0.0, 0.0]], np.float32)
+    if not floor_below:
+        heights[0, 3:] = 0.18
+    is_floor = ~np.isnan(heights)
+    args = (levels, nlev, heights, is_floor, 0.05, 0.2, 0.03)
+    assert nk.step_edges(*args)[0, 2] == edge
+    assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
+
+
 def spans_no_step(heights: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> bool:
     """No cell next to `start` (in the grid) lies within 5 cm of it and more than 5 cm from
     `end`."""

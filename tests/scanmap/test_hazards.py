@@ -412,6 +412,15 @@ def test_no_drop_off_is_free_in_the_rooms_that_showed_one(room, seed, scans):
     assert hazard_run(scans, scene=room(seed))["drop_free_any_scan"] == 0
 
 
+@pytest.mark.parametrize("seed", [210, 404])
+def test_a_ramps_raised_end_is_floor_where_only_its_faces_upper_part_was_seen(seed):
+    # Mixed rooms 210 and 404, ramps ending 18 cm above the floor: the cells of the raised
+    # end and of a high side held the ramp's top and only the upper part of its face (the
+    # rays saw no lower), so they were neither floor nor a step's edge: ramp F1 0.955 and
+    # 0.966. Such a cell is floor and an OBSTACLE, as one holding the whole face is
+    assert hazard_run(scene=mixed_room(seed))["ramp_f1"] >= 0.97
+
+
 def test_a_drop_off_reaches_no_cell_on_from_the_cells_that_show_it():
     # Mixed room 216, a hole's side wall seen at a slant from 1.8 m: its hits show the
     # drop-off in the cells along the wall; the rule that carries the drop-off from the
