@@ -57,24 +57,23 @@ scanned from (it stood there; FREE unless something occupies its band), the assu
 m, each side) enclosed by floor whose heights differ by at most a step, or whose hits
 within two cells are all such floor, none reaching more than `plane_tolerance` below the
 floor beside it (a gap between the laser's samples; a line grazing a hole's corner lands
-a few cm down its far wall), away from any drop-off, and a cell without any hit between two
-such cells along a row, a column or a diagonal whose floor hits lie at most three cells (15
-cm) apart (from a cell's far edge where it holds none), with heights within a step (the
-gaps between samples too narrow to hold a cell without a hit next to it), unless it
-touches a drop-off or a cell whose hits reach that far below the floor beside it (such a
-span may cross a turned hole's corner, from its near rim's floor to the top of its far
-wall); last, a patch without any hit at most `max_pinhole`
-(15 cm) each side whose every neighbour ended FREE. Every
-other cell - black carpet, a hole nothing returned from, the floor beyond the last floor
-hit before a drop-off, floor never lit at all - stays UNKNOWN however much of the band
-rays saw over it (its floor height carried from nearby floor is an assumption, not a
-sighting), as does a cell too steep to be floor. A real hole of max_hole or less returns
-hits below the floor (its far wall) that are not floor, so it is not a gap; it is a
-DROP_OFF where those lie more than a step down, and its cells without any hit around
-them are when a surface lies wholly below the floor model (more than `plane_tolerance`)
-within two cells of them, away from any other drop-off: the floor goes down into a small
-patch nothing returned from (seen from afar, this scanner's laser lands only on the top
-few cm of a hole's far wall).
+a few cm down its far wall), away from any drop-off, and a cell without any hit between
+two such cells along a row, a column or a diagonal whose floor hits lie at most three
+cells (15 cm) apart (from a cell's far edge where it holds none), with heights within a
+step (the gaps between samples too narrow to hold a cell without a hit next to it),
+unless it touches a drop-off or a cell whose hits reach that far below the floor beside
+it (such a span may cross a turned hole's corner, from its near rim's floor to the top
+of its far wall); last, a patch without any hit at most `max_pinhole` (15 cm) each side
+whose every neighbour ended FREE. Every other cell - black carpet, a hole nothing
+returned from, the floor beyond the last floor hit before a drop-off, floor never lit at
+all - stays UNKNOWN however much of the band rays saw over it (its floor height carried
+from nearby floor is an assumption, not a sighting), as does a cell too steep to be
+floor. A real hole of max_hole or less returns hits below the floor (its far wall) that
+are not floor, so it is not a gap; it is a DROP_OFF where those lie more than a step
+down, and its cells without any hit around them are when a surface lies wholly below the
+floor model (more than `plane_tolerance`) within two cells of them, away from any other
+drop-off: the floor goes down into a small patch nothing returned from (seen from afar,
+this scanner's laser lands only on the top few cm of a hole's far wall).
 
 Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known and not unlit (above), nothing
