@@ -416,29 +416,38 @@ def test_a_small_patch_without_returns_is_a_hole_beside_a_surface_below_the_floo
     assert not floor_module._sunk(dark, layers, is_floor, lowest, none, 1, 0.03).any()
 
 
+def between_floor_lines(first: float, spacing: float, params: FloorConfig
+                        ) -> tuple[set[int], np.ndarray]:
+    """Five floor lines along x (1-2 m), `spacing` apart from y = `first`, seen from the
+    origin 1 m up with a wall behind them (2.6 m: rays to it pass over all): the spacings
+    of the lines' rows and the states of the cells between the lines, away from their
+    ends."""
+    grid = HeightGrid(GridConfig(extent=20.0))
+    x = np.arange(1.0, 2.0, 0.01)
+    ys = first + spacing * np.arange(5)
+    floor = np.column_stack([np.tile(x, 5), np.repeat(ys, len(x)), np.zeros(5 * len(x))])
+    wy, wz = np.meshgrid(np.arange(-1.0, 2.0, 0.01), np.arange(0.1, 1.2, 0.02))
+    wall = np.column_stack([np.full(wy.size, 2.6), wy.ravel(), wz.ravel()])
+    grid.insert(np.vstack([floor, wall]), np.array([0.0, ys.mean(), 1.0]), 1.0)
+    seg = segment(grid.layers((-0.5, -1.0, 3.0, 2.0)), params=params)
+    x_c = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution
+    y_c = seg.origin[1] + (np.arange(seg.shape[0]) + 0.5) * seg.resolution
+    lit = np.floor((ys - seg.origin[1]) / seg.resolution).astype(int)  # the lines' rows
+    middle = (x_c > 1.35) & (x_c < 1.65)  # away from the lines' ends
+    between = (y_c > ys[0]) & (y_c < ys[-1])
+    between[lit] = False
+    return set(np.diff(lit)), seg.state[np.ix_(between, middle)]
+
+
 @pytest.mark.parametrize(("spacing", "bridged"), [(0.28, True), (0.32, False)])
 def test_the_gap_between_two_laser_lines_is_floor_when_their_hits_lie_max_gap_apart(
         spacing, bridged):
     # Floor lines along x 0.28 m apart hit to hit (their cells 5 or 6 apart): at most
     # max_gap (0.3 m) open, the cells between them are floor, though the cells' edges lie
-    # up to 0.35 m apart; 0.32 m apart, they are not. Rays to a wall behind pass over all.
+    # up to 0.35 m apart; 0.32 m apart, they are not
     assert FloorConfig().max_gap == 0.3
-    grid = HeightGrid(GridConfig(extent=20.0))
-    x = np.arange(1.0, 2.0, 0.01)
-    ys = 0.03 + spacing * np.arange(5)
-    floor = np.column_stack([np.tile(x, 5), np.repeat(ys, len(x)), np.zeros(5 * len(x))])
-    wy, wz = np.meshgrid(np.arange(-1.0, 2.0, 0.01), np.arange(0.1, 1.2, 0.02))
-    wall = np.column_stack([np.full(wy.size, 2.6), wy.ravel(), wz.ravel()])
-    grid.insert(np.vstack([floor, wall]), np.array([0.0, ys.mean(), 1.0]), 1.0)
-    seg = segment(grid.layers((-0.5, -1.0, 3.0, 2.0)))
-    x_c = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution
-    y_c = seg.origin[1] + (np.arange(seg.shape[0]) + 0.5) * seg.resolution
-    lit = np.floor((ys - seg.origin[1]) / seg.resolution).astype(int)  # the lines' rows
-    assert set(np.diff(lit)) == ({5, 6} if bridged else {6, 7})
-    middle = (x_c > 1.35) & (x_c < 1.65)  # away from the lines' ends
-    between = (y_c > ys[0]) & (y_c < ys[-1])
-    between[lit] = False
-    state = seg.state[np.ix_(between, middle)]
+    apart, state = between_floor_lines(0.03, spacing, FloorConfig())
+    assert apart == ({5, 6} if bridged else {6, 7})
     assert (state == floor_module.FREE).all() == bridged
     assert (state == floor_module.UNKNOWN).all() == (not bridged)
 
@@ -450,21 +459,7 @@ def test_a_narrow_gap_is_floor_when_its_floor_hits_lie_at_most_15_cm_apart(spaci
     # m apart, cells 3 or 4 apart, they do not, though the cells of a pair 3 apart lie
     # within three cells of each other (a pit's turned corner between two rim cells whose
     # floor hits lie on their outer edges: random room 435)
-    grid = HeightGrid(GridConfig(extent=20.0))
-    x = np.arange(1.0, 2.0, 0.01)
-    ys = 0.025 + spacing * np.arange(5)
-    floor = np.column_stack([np.tile(x, 5), np.repeat(ys, len(x)), np.zeros(5 * len(x))])
-    wy, wz = np.meshgrid(np.arange(-1.0, 2.0, 0.01), np.arange(0.1, 1.2, 0.02))
-    wall = np.column_stack([np.full(wy.size, 2.6), wy.ravel(), wz.ravel()])
-    grid.insert(np.vstack([floor, wall]), np.array([0.0, ys.mean(), 1.0]), 1.0)
-    seg = segment(grid.layers((-0.5, -1.0, 3.0, 2.0)), params=FloorConfig(max_gap=0.1))
-    x_c = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution
-    y_c = seg.origin[1] + (np.arange(seg.shape[0]) + 0.5) * seg.resolution
-    lit = np.floor((ys - seg.origin[1]) / seg.resolution).astype(int)  # the lines' rows
-    assert set(np.diff(lit)) == ({2, 3} if bridged else {3, 4})
-    middle = (x_c > 1.35) & (x_c < 1.65)  # away from the lines' ends
-    between = (y_c > ys[0]) & (y_c < ys[-1])
-    between[lit] = False
-    state = seg.state[np.ix_(between, middle)]
+    apart, state = between_floor_lines(0.025, spacing, FloorConfig(max_gap=0.1))
+    assert apart == ({2, 3} if bridged else {3, 4})
     assert (state == floor_module.FREE).all() == bridged
     assert (state == floor_module.UNKNOWN).all() == (not bridged)
