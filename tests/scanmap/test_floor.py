@@ -179,7 +179,7 @@ def test_step_edges_match_a_numpy_reference(seed, ny, nx, depth):
     (0.0, True, True),     # the whole face, from the floor below to the ramp's top
     (0.1, True, True),     # only its upper part seen (the rays saw no more of it)
     (-0.05, True, False),  # reaching below the floor below: not a face between the two
-    (0.1, False, False),   # no floor below within two cells: a box's side, not a step's
+    (0.1, False, False),   # no floor below within two cells: not a step between floors
 ])
 def test_a_step_edge_holds_a_face_or_its_upper_part_between_two_floors(bottom, floor_below,
                                                                        edge):
