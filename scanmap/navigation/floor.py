@@ -167,8 +167,10 @@ class FloorConfig:
     `classify_band` instead.
     overhang_reach: how far (m) the heights of an overhanging board (a table top seen
     only at its rim: this scanner's laser, 0.5 m up, never lights a top above it) are
-    assumed to extend over cells that never saw those heights; overhang_thickness: the
-    thickest level taken for such a board (a table top, a seat, a shelf).
+    assumed to extend over cells that never saw those heights: 1 m covers a desk seen at
+    one end only (at 0.6 m, cells under the far end of the office's table, which rays
+    reached only beneath its top, were FREE); overhang_thickness: the thickest level
+    taken for such a board (a table top, a seat, a shelf).
     coverage_reach: on known floor, band heights seen free this far (m) from a cell count
     for its coverage (0: the cell alone); the cell itself must have seen one.
     slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over.
@@ -218,7 +220,7 @@ class FloorConfig:
     fill_radius: float = 1.0
     min_coverage: float = 0.5
     coverage_reach: float = 0.05
-    overhang_reach: float = 0.6
+    overhang_reach: float = 1.0
     overhang_thickness: float = 0.1
     ransac_iterations: int = 200
     seed: int = 0
