@@ -100,7 +100,7 @@ def test_fault_mid_scan_stops_the_motor_first_and_keeps_a_readable_recording(fau
 
         at = float(re.search(r"at (\d+\.\d+) s into the scan", str(failed)).group(1))
         assert FAULT_AT <= at <= FAULT_AT + delay
-        assert at <= caught - started
+        assert at <= caught - started + 0.005  # the message rounds it to 0.01 s
 
         result = failed.result
         assert result.fault == reason and len(result.frames) == len(result.frame_times) >= 10
