@@ -80,7 +80,7 @@ POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO
 
 # Indices into the float parameter vector `fp` of the insertion kernel.
 (FP_RES, FP_X0, FP_Y0, FP_ZMIN, FP_MASK_DZ, FP_GAP, FP_MARGIN, FP_LHIT, FP_LMISS, FP_LMAX,
- FP_PROTECT, FP_PASS_RADIUS, FP_GRAZE_SIN) = range(13)
+ FP_PROTECT, FP_PASS_RADIUS, FP_GRAZE_SIN, FP_SEE_THROUGH) = range(14)
 # Indices into the integer parameter vector `ip`.
 IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN, IP_STATIC, IP_VISITS = range(8)
 
@@ -496,6 +496,10 @@ def _cell_offset(tile_index, ix, iy, shift) -> int:
     return (np.int64(slot) << (2 * shift)) | ((iy & mask) << shift) | (ix & mask)
 
 
+_NEIGHBOURS = np.array([(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dx or dy],
+                       np.int64)  # (dx, dy) of the 8 cells round a cell
+
+
 @njit(cache=True, nogil=True)
 def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
                    levels, static_scans) -> bool:
@@ -521,31 +525,46 @@ def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp,
     mx, my = lev_f[li, MX], lev_f[li, MY]
     near2 = 0.25 * res * res
     along, left, right, found = False, False, False, 0
-    for ny in range(-1, 2):
-        for nx in range(-1, 2):
-            joff = _cell_offset(tile_index, ix + nx, iy + ny, shift)
-            if (nx == 0 and ny == 0) or joff < 0:
-                continue
-            for lj in range(joff * levels, joff * levels + np.int64(nlev[joff])):
-                if np.int64(lev_n[lj, SCANS]) >= static_scans \
-                        and lev_f[lj, LO] - tol <= zb and za <= lev_f[lj, HI] + tol:
-                    found += 1
-                    px, py = nx * res + lev_f[lj, MX] - mx, ny * res + lev_f[lj, MY] - my
-                    d2 = px * px + py * py
-                    cross = ux * py - uy * px
-                    if cross * cross <= graze * graze * d2:
-                        along = along or d2 >= near2
-                    elif cross > 0.0:
-                        left = True
-                    else:
-                        right = True
-                    break
+    for n in range(8):
+        nx, ny = _NEIGHBOURS[n, 0], _NEIGHBOURS[n, 1]
+        joff = _cell_offset(tile_index, ix + nx, iy + ny, shift)
+        for lj in range(joff * levels, joff * levels + (np.int64(nlev[joff]) if joff >= 0 else 0)):
+            if np.int64(lev_n[lj, SCANS]) >= static_scans \
+                    and lev_f[lj, LO] - tol <= zb and za <= lev_f[lj, HI] + tol:
+                found += 1
+                px, py = nx * res + lev_f[lj, MX] - mx, ny * res + lev_f[lj, MY] - my
+                d2 = px * px + py * py
+                cross = ux * py - uy * px
+                if cross * cross <= graze * graze * d2:
+                    along = along or d2 >= near2
+                elif cross > 0.0:
+                    left = True
+                else:
+                    right = True
+                break
     return found >= 2 and along and not (left and right)
 
 
 @njit(cache=True, nogil=True)
+def _beside_seen_longer(lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, tol, shift,
+                        levels) -> bool:
+    """Whether one of the 8 cells round cell (ix, iy) holds a level hit in two scans or
+    more that reaches the heights [lo, hi] (within `tol`): a level hit in one scan there
+    may be the rarely hit rim of a surface (a table top's edge, seen at a grazing angle),
+    not what a person left, and rays through the free part of its cell do not clear it
+    at once (see _pass_cell)."""
+    for n in range(8):
+        joff = _cell_offset(tile_index, ix + _NEIGHBOURS[n, 0], iy + _NEIGHBOURS[n, 1], shift)
+        for lj in range(joff * levels, joff * levels + (np.int64(nlev[joff]) if joff >= 0 else 0)):
+            if np.int64(lev_n[lj, SCANS]) >= 2 and lev_f[lj, LO] - tol <= hi \
+                    and lo <= lev_f[lj, HI] + tol:
+                return True
+    return False
+
+
+@njit(cache=True, nogil=True)
 def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bits, path, fp,
-               shift, levels, max_miss, static_scans, scan) -> int:
+               shift, levels, max_miss, static_scans, scan, through) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
     A level not hit in this scan takes a miss; one the ray only entered, from above or
@@ -562,6 +581,9 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
     `tile_index`, give the face's direction), when it was hit in at least half
     `static_scans` scans: a face that cuts a cell off its centre is hit there in fewer
     scans than in its neighbours, and the level is split by rays through the free part.
+    A level hit in one scan only, not hit in this one, is removed outright by a ray that
+    went on `see_through` beyond the cell (`through`), unless a neighbouring cell holds a
+    level at its heights hit in two scans or more (_beside_seen_longer).
     Returns the levels removed.
     """
     cleared = 0
@@ -594,7 +616,13 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
             continue
         lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
         if not hit_now:
-            cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
+            if through and lev_n[li, SCANS] <= 1 and not _beside_seen_longer(
+                    lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, fp[FP_MASK_DZ], shift,
+                    levels):
+                _remove(lev_f, lev_n, lev_flag, nlev, off, k, levels)  # one look through
+                cleared += 1  # outweighs one scan's hits
+            else:
+                cleared += _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss)
             continue
         if zb >= lev_f[li, SLO] - protect and za <= lev_f[li, SHI] + protect:
             continue  # hit near these heights in this scan: occupied wins
@@ -626,6 +654,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
     z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
     shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
     bundle_run, static_scans = ip[IP_RUN], ip[IP_STATIC]
+    see_through = fp[FP_SEE_THROUGH]
     count_visits = ip[IP_VISITS] != 0
     mask = (1 << shift) - 1
     scan = np.uint32(ip[IP_SCAN])
@@ -714,7 +743,7 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                             n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index,
                                                     off, ix, iy, za, zb, clear, path, fp,
                                                     shift, levels, max_miss, static_scans,
-                                                    scan)
+                                                    scan, t_in * length >= see_through)
             if tmx < tmy:
                 ix += sx
                 t_in = tmx

@@ -138,7 +138,8 @@ class HeightGrid:
         self._ray_key = 0  # last ray-bundle key used
         self._fp = np.array([c.resolution, c.corner, c.corner, c.z_min, c.mask_dz, c.merge_gap,
                              c.clear_margin, c.l_hit, c.l_miss, c.l_max, c.protect,
-                             c.pass_radius, math.sin(math.radians(c.graze_angle))],
+                             c.pass_radius, math.sin(math.radians(c.graze_angle)),
+                             c.see_through],
                             np.float64)
         self._shift = c.tile_cells.bit_length() - 1
 

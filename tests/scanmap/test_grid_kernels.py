@@ -401,6 +401,12 @@ def test_a_graze_angle_outside_0_to_90_degrees_is_refused(angle):
         GridConfig(graze_angle=angle)
 
 
+@pytest.mark.parametrize("distance", [-0.1, float("nan")])
+def test_a_see_through_distance_below_0_is_refused(distance):
+    with pytest.raises(MapError, match="see_through"):
+        GridConfig(see_through=distance)
+
+
 def test_misses_per_scan_are_capped():
     grid, full = one_level_grid(0.72, 0.76)
     many = np.array([[4.0, 0.025 + dy, 0.74] for dy in np.linspace(-0.02, 0.02, 10)])
