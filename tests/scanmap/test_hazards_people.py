@@ -66,3 +66,12 @@ def test_an_end_face_seen_only_on_the_way_towards_it_does_not_erode():
     GridConfig.static_scans was 10; 8 keeps it)."""
     measured = people_run(20, scene=people_room(10))
     assert measured["wall_cells_eroded"] == 0
+
+
+@pytest.mark.xfail(strict=True, reason="known gap (issue 17): people_room(23): a cabinet's "
+                   "end face lies 5 mm inside its cells; hit in one scan as the robot starts, "
+                   "it is cleared by rays through the cells' free part (10 wall cell-scans "
+                   "no longer OBSTACLE in scans 0-9, none FREE; rooms 13-24: 335 in 8 "
+                   "rooms, 40 FREE)")
+def test_an_end_face_hit_in_one_scan_at_the_start_does_not_erode():
+    assert people_run(10, scene=people_room(23))["wall_cells_eroded"] == 0
