@@ -100,21 +100,27 @@ def mixed_cells(scene, reference) -> np.ndarray:
     floating-point rounding in the raster and by range noise in the map. These cells are
     "don't care" in the fair figures (both the map's and the truth's class ignored) and
     scored in the strict ones; a face crossing a cell is never excused."""
-    def resized(delta: float) -> np.ndarray:
-        objects = [replace(o, size=(o.size[0] + 2 * delta, o.size[1] + 2 * delta, o.size[2]))
-                   if isinstance(o, Box) else replace(o, radius=o.radius + delta)
-                   for o in scene.objects]
-        raster = truth_raster(replace(scene, objects=objects), 0.05, ROBOT.step_height,
-                              ROBOT.height)
-        out = np.zeros(reference.classes.shape, bool)  # on the reference's cells
-        dx, dy = np.rint((raster.origin - reference.origin) / 0.05).astype(int)
-        ny, nx = raster.classes.shape
-        rows = slice(max(dy, 0), min(dy + ny, out.shape[0]))
-        cols = slice(max(dx, 0), min(dx + nx, out.shape[1]))
-        out[rows, cols] = (raster.classes == TRUE_OBSTACLE)[rows.start - dy:rows.stop - dy,
-                                                            cols.start - dx:cols.stop - dx]
-        return out
-    return resized(EDGE_TOLERANCE) != resized(-EDGE_TOLERANCE)
+    return object_cells(scene, reference, EDGE_TOLERANCE) \
+        != object_cells(scene, reference, -EDGE_TOLERANCE)
+
+
+def object_cells(scene, reference, delta: float) -> np.ndarray:
+    """(rows, cols) of `reference`'s cells that the scene's objects in the robot's band
+    overlap once each has grown by `delta` (m) on every side; shrunk (delta < 0), the
+    cells some object reaches more than -delta into."""
+    objects = [replace(o, size=(o.size[0] + 2 * delta, o.size[1] + 2 * delta, o.size[2]))
+               if isinstance(o, Box) else replace(o, radius=o.radius + delta)
+               for o in scene.objects]
+    raster = truth_raster(replace(scene, objects=objects), 0.05, ROBOT.step_height,
+                          ROBOT.height)
+    out = np.zeros(reference.classes.shape, bool)  # on the reference's cells
+    dx, dy = np.rint((raster.origin - reference.origin) / 0.05).astype(int)
+    ny, nx = raster.classes.shape
+    rows = slice(max(dy, 0), min(dy + ny, out.shape[0]))
+    cols = slice(max(dx, 0), min(dx + nx, out.shape[1]))
+    out[rows, cols] = (raster.classes == TRUE_OBSTACLE)[rows.start - dy:rows.stop - dy,
+                                                        cols.start - dx:cols.stop - dx]
+    return out
 
 
 def true_distance(scene, q: np.ndarray) -> np.ndarray:

@@ -108,4 +108,5 @@ def test_the_benchmark_measures_rooms_with_people_and_their_sum(capsys):
     assert total["left_cells"] > 0 and 0.9 < total["wall_recall_people"] <= 1.0
     assert total["wall_cells_freed"] <= total["wall_cells_eroded"] \
         <= total["wall_cells_eroded_strict"]
+    assert total["wall_cells_eroded_deep"] <= total["wall_cells_eroded"]
 
