@@ -103,8 +103,7 @@ BAND_BIN = 0.025  # m, height bins of the robot's band for the see-through truth
 BAND_BINS = round((ROBOT.height - ROBOT.step_height) / BAND_BIN)  # bins in the band
 RAY_STEP = 0.01  # m, sampling step along the true rays for the see-through truth
 SEE_THROUGH_SHARE = 0.95  # share of the band's bins crossed: the cell was seen through
-DEEP_CUT = 0.01  # m: an eroded wall cell an object reaches more than this into (the rest
-# are slivers: the later rays crossed their free part, beside hits on a line near the edge)
+DEEP_CUT = 0.01  # m: eroded wall cells an object reaches deeper into are counted apart
 PLACEMENTS = 8  # placements of the hazards scene on the cells (`placed_run`)
 RANDOM_ROOMS = 12  # random hazard rooms measured (`random_run`)
 PEOPLE_ROOMS = 6  # rooms with people measured (`people_rooms_run`)
