@@ -107,10 +107,13 @@ def mixed_cells(scene, reference) -> np.ndarray:
 def object_cells(scene, reference, delta: float) -> np.ndarray:
     """(rows, cols) of `reference`'s cells that the scene's objects in the robot's band
     overlap once each has grown by `delta` (m) on every side; shrunk (delta < 0), the
-    cells some object reaches more than -delta into."""
+    cells some object reaches more than -delta into (an object no thicker than -2 delta
+    reaches into none)."""
     objects = [replace(o, size=(o.size[0] + 2 * delta, o.size[1] + 2 * delta, o.size[2]))
                if isinstance(o, Box) else replace(o, radius=o.radius + delta)
                for o in scene.objects]
+    objects = [o for o in objects
+               if (min(o.size[:2]) if isinstance(o, Box) else o.radius) > 1e-9]  # not a plane
     raster = truth_raster(replace(scene, objects=objects), 0.05, ROBOT.step_height,
                           ROBOT.height)
     out = np.zeros(reference.classes.shape, bool)  # on the reference's cells

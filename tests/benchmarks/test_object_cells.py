@@ -17,11 +17,13 @@ def box(x0: float, x1: float, y0: float, y1: float) -> dict:
             "size": [x1 - x0, y1 - y0, 0.8], "color": GREY}
 
 
-# Faces cutting the cell column x in [2.0, 2.05): 5 mm, 30 mm and 1 mm into it.
+# Faces cutting the cell column x in [2.0, 2.05): 5 mm, 30 mm and 1 mm into it; panels
+# 2 cm and 1.5 cm thick at x = 3.0 and 3.5.
 SCENE = Scene.from_dict({"format": "scanmap.scene/1", "floor": {"color": GREY},
                          "ambient": 1.0, "scan_poses": [[0.5, 0.5, 0.0]],
                          "objects": [box(2.045, 2.4, 0.0, 0.4), box(1.6, 2.03, 1.0, 1.4),
-                                     box(2.049, 2.4, 2.0, 2.4)]})
+                                     box(2.049, 2.4, 2.0, 2.4), box(3.0, 3.02, 0.0, 1.0),
+                                     box(3.5, 3.515, 0.0, 1.0)]})
 
 
 def at(cells: np.ndarray, raster, x: float, y: float) -> bool:
@@ -37,6 +39,8 @@ def test_shrunk_objects_keep_the_cells_they_reach_deep_into():
     assert at(deep, raster, 2.075, 0.2)
     assert at(deep, raster, 2.025, 1.2)  # 30 mm in
     assert not at(deep, raster, 2.075, 1.2)  # beyond the face
+    assert not deep[:, raster.cell_of(np.array([[2.95, 0.0]]))[0, 1]:].any()  # panels 2 cm
+    # and 1.5 cm thick reach no more than 1 cm into any cell
     assert deep.sum() < (raster.classes == OBSTACLE).sum()
 
 
