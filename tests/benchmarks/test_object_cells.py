@@ -39,8 +39,8 @@ def test_shrunk_objects_keep_the_cells_they_reach_deep_into():
     assert at(deep, raster, 2.075, 0.2)
     assert at(deep, raster, 2.025, 1.2)  # 30 mm in
     assert not at(deep, raster, 2.075, 1.2)  # beyond the face
-    assert not deep[:, raster.cell_of(np.array([[2.95, 0.0]]))[0, 1]:].any()  # panels 2 cm
-    # and 1.5 cm thick reach no more than 1 cm into any cell
+    # the panels, 2 cm and 1.5 cm thick, reach no more than 1 cm into any cell
+    assert not deep[:, raster.cell_of(np.array([[2.95, 0.0]]))[0, 1]:].any()
     assert deep.sum() < (raster.classes == OBSTACLE).sum()
 
 
