@@ -569,15 +569,17 @@ _JUMP_LENGTHS = np.hypot(_JUMPS[:, 0], _JUMPS[:, 1])
 
 @njit(cache=True, nogil=True)
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
-                empty: np.ndarray, max_rise: float) -> np.ndarray:
+                empty: np.ndarray, max_rise: float, shown: np.ndarray) -> np.ndarray:
     """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step,
     and across the `empty` cells (no hit: a gap between the laser's lines) to the cells two
     away whose heights differ by at most `max_rise` per cell of the distance (a floor's
     slope, not a step's face), where every cell between lies in `empty` (its midpoint, or
     both cells beside a knight's move), and each end is within max_step of the cells next
-    to the other that are within max_step of it (`_spans_no_step`). Jumps are tried only
-    from the few candidates the neighbours alone did not reach (a jump is the same from
-    either end), and onwards."""
+    to the other that are within max_step of it (`_spans_no_step`), those cells read from
+    `shown`: every candidate, also those left out of `heights` (too steep, a step's face),
+    which are the cells that show a step beside a jump's end. Jumps are tried only from
+    the few candidates the neighbours alone did not reach (a jump is the same from either
+    end), and onwards."""
     ny, nx = heights.shape
     inside = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
@@ -587,25 +589,26 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
             if seeds[y, x]:
                 queue[tail] = y * nx + x
                 tail += 1
-    head = tail = _spread(heights, inside, queue, 0, tail, max_step, empty, max_rise, False)
+    head = tail = _spread(heights, shown, inside, queue, 0, tail, max_step, empty, max_rise,
+                          False)
     for y in range(ny):
         for x in range(nx):
             if inside[y, x] or np.isnan(heights[y, x]):
                 continue
             for k in range(_JUMPS.shape[0]):
-                if _can_jump(heights, empty, max_step, max_rise, y, x, k) \
+                if _can_jump(heights, shown, empty, max_step, max_rise, y, x, k) \
                         and inside[y + _JUMPS[k, 0], x + _JUMPS[k, 1]]:
                     inside[y, x] = True
                     queue[tail] = y * nx + x
                     tail += 1
                     break
-    _spread(heights, inside, queue, head, tail, max_step, empty, max_rise, True)
+    _spread(heights, shown, inside, queue, head, tail, max_step, empty, max_rise, True)
     return inside
 
 
 @njit(cache=True, nogil=True)
-def _spread(heights: np.ndarray, inside: np.ndarray, queue: np.ndarray, head: int,
-            tail: int, max_step: float, empty: np.ndarray, max_rise: float,
+def _spread(heights: np.ndarray, shown: np.ndarray, inside: np.ndarray, queue: np.ndarray,
+            head: int, tail: int, max_step: float, empty: np.ndarray, max_rise: float,
             jumps: bool) -> int:
     """`grow_region`'s breadth-first growth from the cells queue[head:tail] (inside),
     with or without jumps; returns the queue's new tail."""
@@ -622,7 +625,8 @@ def _spread(heights: np.ndarray, inside: np.ndarray, queue: np.ndarray, head: in
                     tail += 1
         for k in range(_JUMPS.shape[0] if jumps else 0):
             yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
-            if _can_jump(heights, empty, max_step, max_rise, y, x, k) and not inside[yy, xx]:
+            if _can_jump(heights, shown, empty, max_step, max_rise, y, x, k) \
+                    and not inside[yy, xx]:
                 inside[yy, xx] = True
                 queue[tail] = yy * nx + xx
                 tail += 1
@@ -630,16 +634,16 @@ def _spread(heights: np.ndarray, inside: np.ndarray, queue: np.ndarray, head: in
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _can_jump(heights: np.ndarray, empty: np.ndarray, max_step: float, max_rise: float,
-              y: int, x: int, k: int) -> bool:
+def _can_jump(heights: np.ndarray, shown: np.ndarray, empty: np.ndarray, max_step: float,
+              max_rise: float, y: int, x: int, k: int) -> bool:
     """Whether `grow_region` may jump from (y, x) by _JUMPS[k] (inside the grid)."""
     ny, nx = heights.shape
     yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
     return 0 <= yy < ny and 0 <= xx < nx and empty[y + _JUMPS[k, 2], x + _JUMPS[k, 3]] \
         and empty[y + _JUMPS[k, 4], x + _JUMPS[k, 5]] \
         and abs(heights[yy, xx] - heights[y, x]) <= max_rise * _JUMP_LENGTHS[k] \
-        and _spans_no_step(heights, y, x, heights[yy, xx], max_step) \
-        and _spans_no_step(heights, yy, xx, heights[y, x], max_step)
+        and _spans_no_step(shown, y, x, heights[yy, xx], max_step) \
+        and _spans_no_step(shown, yy, xx, heights[y, x], max_step)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -661,37 +665,59 @@ def _spans_no_step(heights: np.ndarray, y: int, x: int, far: float, max_step: fl
 
 
 @njit(cache=True, nogil=True)
-def bridged_steps(heights: np.ndarray, max_step: float) -> np.ndarray:
-    """Candidates that bridge a step too high for the robot: next to two candidates within
-    two cells of each other that lie more than `max_step` but at most twice that apart in
-    height, within `max_step` of both and more than a tenth of it from each (the thin
-    levels a step's face leaves in the cells it crosses). Growing the floor cell by cell
-    within max_step would walk down such a chain (0, -2, -6, -8 cm) onto the floor below
-    an 8 cm step. A cell level with one side (a ramp's edge beside its face) is no bridge."""
+def bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndarray:
+    """Candidates that bridge a step too high for the robot: within `max_step` of two
+    candidates that lie more than max_step apart in height, within `reach` cells of each
+    other and on either side of it (inside the circle their distance spans), and more
+    than a tenth of max_step from each (the thin levels a step's face leaves in the cells
+    it crosses). Growing the floor cell by cell within max_step would walk down such a
+    chain onto the floor below: 0, -2, -6, -8 cm down an 8 cm step, or 0, -1.6, -2.6,
+    -3.5, -4.9, -6.1 cm where a turned 6 cm step's face crosses the cells at a slant, its
+    two sides three cells apart. `reach` (cells) keeps a ramp within the robot's slope
+    clear of it (its heights that far apart differ by less than a step). A cell level
+    with one side (a ramp's edge beside its face) is no bridge, nor one at a ramp's side
+    beside the floor (the ramp rises along it, the floor lies across)."""
     ny, nx = heights.shape
     out = np.zeros((ny, nx), np.bool_)
     margin = 0.1 * max_step
+    near2 = reach * reach
+    cells = int(reach)
+    side = 2 * cells + 1
+    above = np.empty((side * side, 3))  # (y, x, height) of the candidates above the cell
+    below = np.empty((side * side, 3))  # and below it, each within a step
     for y in range(ny):
         for x in range(nx):
-            hb = heights[y, x]
-            if np.isnan(hb):
+            hd = heights[y, x]
+            if np.isnan(hd):
                 continue
-            for yc in range(y, min(y + 3, ny)):  # each pair once: C after B
-                for xc in range(max(x - 2, 0), min(x + 3, nx)):
-                    if yc == y and xc <= x:
+            n_above, n_below = 0, 0
+            top, bottom = -np.inf, np.inf
+            for yy in range(max(y - cells, 0), min(y + cells + 1, ny)):
+                for xx in range(max(x - cells, 0), min(x + cells + 1, nx)):
+                    if (yy - y) ** 2 + (xx - x) ** 2 > near2:
                         continue
-                    step = abs(heights[yc, xc] - hb)
-                    if not max_step < step <= 2.0 * max_step:  # False for NaN
-                        continue
-                    for yd in range(max(y, yc) - 1, min(y, yc) + 2):
-                        for xd in range(max(x, xc) - 1, min(x, xc) + 2):
-                            if (yd == y and xd == x) or (yd == yc and xd == xc) \
-                                    or not (0 <= yd < ny and 0 <= xd < nx):
-                                continue
-                            hd = heights[yd, xd]
-                            if margin < abs(hd - hb) <= max_step \
-                                    and margin < abs(hd - heights[yc, xc]) <= max_step:
-                                out[yd, xd] = True
+                    h = heights[yy, xx]
+                    if margin < h - hd <= max_step:  # False for NaN
+                        above[n_above, 0], above[n_above, 1], above[n_above, 2] = yy, xx, h
+                        n_above += 1
+                        top = max(top, h)
+                    elif margin < hd - h <= max_step:
+                        below[n_below, 0], below[n_below, 1], below[n_below, 2] = yy, xx, h
+                        n_below += 1
+                        bottom = min(bottom, h)
+            if top - bottom <= max_step:  # also when either side has none
+                continue
+            for i in range(n_above):
+                for j in range(n_below):
+                    if above[i, 2] - below[j, 2] > max_step \
+                            and (above[i, 0] - below[j, 0]) ** 2 \
+                            + (above[i, 1] - below[j, 1]) ** 2 <= near2 \
+                            and (above[i, 0] - y) * (below[j, 0] - y) \
+                            + (above[i, 1] - x) * (below[j, 1] - x) <= 0.0:
+                        out[y, x] = True
+                        break
+                if out[y, x]:
+                    break
     return out
 
 

@@ -9,8 +9,9 @@ cell without any hit (a gap between the laser's lines, which cut a ramp seen fro
 into islands) to a candidate two cells away, if the height between them changes no
 faster than `max_slope` allows (a chain of such jumps does not climb a step's face),
 and each end lies within a step of the cells beside the other end that are within a
-step of it (a jump from a level a step's face left in a cell, 3 cm down beside the
-floor, does not land on the floor 6 cm below).
+step of it, every candidate counted, also those too steep to be floor (a jump from a
+level a step's face left in a cell, 3 cm down beside the floor, does not land on the
+floor 6 cm below).
 Planes are then fitted to the floor region by sequential RANSAC and reported (the
 floor, a ramp, a raised part).
 Cells without observed floor (under objects, under occluded table tops) take the height
@@ -29,10 +30,12 @@ within `plane_tolerance` of the ramp's surface and from the floor below, or from
 up its face where the rays saw no lower, both floors at most two cells away) is floor,
 as both its parts are, and an OBSTACLE: the robot may not cross the step. A step's
 face leaves thin levels at in-between heights in the cells it crosses (0, -2, -6, -8 cm
-down an 8 cm step), each within a step of the next: a candidate within a step of two
-candidates up to two cells apart that differ by more than a step (`bridged_steps`)
-joins the floor only from a floor cell next to it, and the growth goes no further from
-it, so the floor below the step is not reached through it.
+down an 8 cm step; four in-between levels where a 6 cm step's face crosses the cells at
+a slant), each within a step of the next: a candidate within a step of two candidates
+on either side of it that differ by more than a step and lie within 3.4 cells of each
+other (as far as a ramp at `max_slope` rises 9/10 of a step: `bridged_steps`), joins
+the floor only from a floor cell next to it, and the growth goes no further from it,
+so the floor below the step is not reached through it.
 
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
@@ -433,7 +436,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     cand = nk.floor_candidates(layers.levels, layers.nlev, params.thickness, params.clearance)
     slope = nk.local_slope(cand, max(round(params.slope_reach / res), 1), robot.step_height, res)
     steep = slope > params.max_slope  # False for NaN
-    bridges = nk.bridged_steps(cand, robot.step_height) & ~steep  # a step's face
+    bridges = nk.bridged_steps(cand, robot.step_height, _bridge_reach(robot, params, res)) \
+        & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
     gy, gx, cand_points = nk.cell_points(has, level, xs, ys)
@@ -448,7 +452,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
         is_floor = nk.grow_region(level, seeds, robot.step_height, layers.nlev == 0,
-                                   math.tan(params.max_slope) * res)
+                                   math.tan(params.max_slope) * res, cand)
         joined = nk.touching_floor(cand, is_floor, bridges, robot.step_height)
         is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
         bridges &= ~joined
@@ -586,6 +590,14 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
                         slope=np.where(is_floor, slope, np.nan).astype(np.float32))
+
+
+def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:
+    """How far apart (cells) `bridged_steps` looks for a step's two sides: as far as a
+    ramp at `max_slope` rises nine tenths of a step, a tenth left for the floor's noise
+    (0.17 m, 3.4 cells at the defaults), at least two cells."""
+    run = 0.9 * robot.step_height / max(math.tan(params.max_slope), 1e-9)
+    return max(run / resolution, 2.0)
 
 
 def _cells(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

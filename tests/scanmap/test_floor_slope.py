@@ -1,5 +1,6 @@
 """The floor's local slope (`_kernels.local_slope`) against the closed form of a plane, and
-a chain of cells too thin for a plane: the foot of a wall, a laser line's arc."""
+a chain of cells too thin for a plane: the foot of a wall, a laser line's arc; the cells a
+step's face leaves between its two floors (`_kernels.bridged_steps`)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from scanmap.navigation import _kernels as nk
+from scanmap.navigation import floor
+from scanmap.navigation.floor import FloorConfig, RobotShape
 
 RES = 0.05
 STEP = 0.05
 REACH = 2
+REACH_OF_A_STEP = floor._bridge_reach(RobotShape(), FloorConfig(), RES)  # `bridged_steps`'
 
 
 @settings(max_examples=60, deadline=None)
@@ -85,6 +89,46 @@ def _row(*heights: float) -> np.ndarray:
     ((0.0, 0.0, 0.2, 0.2), ()),  # a box top: no candidate between
 ])
 def test_bridged_steps_are_the_cells_between_two_sides_of_a_step(heights, bridges):
-    flagged = nk.bridged_steps(_row(*heights), 0.05)
+    flagged = nk.bridged_steps(_row(*heights), STEP, REACH_OF_A_STEP)
     assert tuple(np.flatnonzero(flagged[1])) == bridges
     assert not flagged[0].any() and not flagged[2].any()
+
+
+NAN = math.nan
+# Random room 609's step down, 6.1 cm deep and turned 5 deg to the cells, at its 23rd scan:
+# each cell's floor candidate near a corner (mm; NaN for none), rows north to south. Its
+# face left candidates 1.4 to 4.9 cm down in the cells it crosses, each within a step of
+# the next and the step's two sides three cells apart: grown cell by cell, the floor went
+# down them onto the lower floor, which was FREE although the robot cannot take the step
+TURNED_STEP_MM = [
+    [-60, NAN, NAN, NAN, NAN, NAN, NAN, 0, 0],
+    [NAN, NAN, NAN, NAN, NAN, NAN, -1, 0, -1],
+    [NAN, NAN, NAN, NAN, -1, 0, 0, -1, 0],
+    [NAN, NAN, NAN, -14, -16, 0, -1, 0, 0],
+    [NAN, NAN, NAN, NAN, -26, NAN, 0, 0, NAN],
+    [NAN, -62, -60, -35, NAN, 0, 0, NAN, NAN],
+    [-61, -60, -60, -49, NAN, NAN, NAN, NAN, NAN],
+    [-61, -61, -61, -61, -41, NAN, NAN, NAN, NAN],
+    [-60, -61, -62, -62, NAN, NAN, NAN, NAN, NAN],
+]
+
+
+def test_the_floor_grown_down_a_turned_steps_face_stops_at_the_step():
+    heights = (np.array(TURNED_STEP_MM[::-1]) / 1000.0).astype(np.float32)
+    bridges = nk.bridged_steps(heights, STEP, REACH_OF_A_STEP)
+    grown = nk.grow_region(np.where(bridges, np.nan, heights), heights > -0.003, STEP,
+                           np.isnan(heights), math.tan(FloorConfig().max_slope) * RES, heights)
+    lower = heights < -0.055
+    assert lower.sum() == 14 and not (grown & lower).any()
+
+
+@settings(max_examples=60, deadline=None)
+@given(degrees=st.floats(0.0, 15.0), direction=st.floats(0.0, 2.0 * math.pi),
+       base=st.floats(-5.0, 5.0))
+def test_no_cell_of_a_ramp_within_max_slope_bridges_a_step(degrees, direction, base):
+    # `bridged_steps` looks as far as a ramp at max_slope rises 9/10 of a step
+    assert FloorConfig().max_slope == pytest.approx(math.radians(15.0))
+    y, x = np.mgrid[0:11, 0:11] * RES
+    rise = math.tan(math.radians(degrees)) * (math.cos(direction) * x + math.sin(direction) * y)
+    heights = (base + rise).astype(np.float32)
+    assert not nk.bridged_steps(heights, STEP, REACH_OF_A_STEP).any()
