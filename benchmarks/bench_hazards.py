@@ -2,12 +2,13 @@
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
-        [--mixed N] [--people N]
+        [--mixed N] [--step N] [--people N] [--first SEED]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
-takes them); with `--random N`, `--mixed N` or `--people N`, on N random hazard rooms,
-mixed rooms or rooms with people (`random_rooms`): a method must hold on scenes it was
-not built on.
+takes them); with `--random N`, `--mixed N`, `--step N` or `--people N`, on N random
+hazard rooms, mixed rooms, rooms with one step down just deeper than the robot's step or
+rooms with people (`random_rooms`, seeds from `--first`, 1 by default): a method must
+hold on scenes it was not built on.
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -72,7 +73,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
-from benchmarks.random_rooms import mixed_room, people_room, random_room
+from benchmarks.random_rooms import mixed_room, people_room, random_room, step_room
 from scanmap.evaluation.ground_truth import drop_off_errors
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
@@ -388,11 +389,12 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
             "wall_recall_people": recall["people"], "wall_recall_empty": recall["empty"]}
 
 
-def people_rooms(count: int, scans: int | None = None) -> dict[str, dict[str, float]]:
-    """`people_run` on `count` rooms with people (`random_rooms.people_room`, seeds 1 to
-    count), by room."""
+def people_rooms(count: int, scans: int | None = None, first: int = 1
+                 ) -> dict[str, dict[str, float]]:
+    """`people_run` on `count` rooms with people (`random_rooms.people_room`, seeds
+    `first` on), by room."""
     return {f"people_room({seed})": people_run(scans, scene=people_room(seed))
-            for seed in range(1, count + 1)}
+            for seed in range(first, first + count)}
 
 
 def people_rooms_run(count: int, scans: int | None = None) -> dict[str, float]:
@@ -521,26 +523,30 @@ def main(argv: list[str] | None = None) -> int:
                         help="measure this scene file (or built-in scene) instead: the "
                         "drop-off and ramp measures, and with people the ghost ones; "
                         "repeatable")
-    for family in ("random", "mixed"):
+    families = {"random": random_room, "mixed": mixed_room, "step": step_room}
+    for family in families:
         parser.add_argument(f"--{family}", type=int, metavar="N",
                             help=f"instead: the drop-off and ramp measures on N {family} "
                             "rooms (benchmarks.random_rooms), each and the worst")
     parser.add_argument("--people", type=int, metavar="N",
                         help="instead: the ghost and erosion measures on N rooms with "
                         "people (benchmarks.random_rooms), each and summed")
+    parser.add_argument("--first", type=int, default=1, metavar="SEED",
+                        help="the rooms' first seed (default 1): fresh seeds are rooms "
+                        "no rule was tried on")
     args = parser.parse_args(argv)
     scans = 8 if args.quick else None
-    for family, draw in (("random", random_room), ("mixed", mixed_room)):
+    for family, draw in families.items():
         count = getattr(args, family) or 0
         rooms = {f"{family}_room({seed})": hazard_run(scans, scene=draw(seed))
-                 for seed in range(1, count + 1)}
+                 for seed in range(args.first, args.first + count)}
         if rooms:
             print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))},
                              indent=1))
-    rooms = people_rooms(args.people or 0, 24 if args.quick else None)
+    rooms = people_rooms(args.people or 0, 24 if args.quick else None, args.first)
     if rooms:
         print(json.dumps(rooms | {"sum": people_summary(list(rooms.values()))}, indent=1))
-    if not (args.scene or args.random or args.mixed or args.people):
+    if not (args.scene or args.random or args.mixed or args.step or args.people):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))

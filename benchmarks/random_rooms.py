@@ -1,4 +1,4 @@
-"""Random hazard rooms: scenes the hazard rules were not built on (two families below).
+"""Random hazard rooms: scenes the hazard rules were not built on (the families below).
 
 The built-in `hazards` and `workshop` scenes are where the rules were shaped; a rule that
 holds only there is tuned to them. Each room is drawn afresh from its seed.
@@ -21,6 +21,12 @@ poses lie 0.3-0.6 m apart (the heading within 12 deg of the path), in ambient li
 0.3-0.9. A black-lined hole returns nothing, as black carpet does: it is told apart only
 by its size, so one a little wider than `max_hole` may be taken for carpet (the lit gaps
 around it widen the patch the rules measure).
+
+`step_room(seed)`: the step the robot can only just not take, in the 9 m x 5 m room: one
+step down 5.5-9 cm deep (`RobotShape.step_height` is 5 cm), 0.9 m square and turned by up
+to 46 deg, 1-1.6 m beside a path of 15 poses 0.5 m apart (within 0.2 m of the room's
+axis, the heading within 6 deg). Where its face crosses the cells at a slant it leaves
+levels at in-between heights, each within a step of the next, across up to three cells.
 
 `people_room(seed)`: people pass while walls and furniture stay, in a walled room 7-10 m
 long and 2.8-4 m wide with three cabinets (0.4-0.9 m long, 0.4 m deep, 0.7 m high,
@@ -170,6 +176,20 @@ def random_room(seed: int) -> Scene:
         poses.append([round(x, 3), round(amplitude * math.sin(x / 1.3 + phase), 4),
                       round(math.atan(slope) + rng.uniform(-0.05, 0.05), 4)])
     return _room(f"random room {seed}", f"random_room({seed})", 10.1, 5.1, 0.8, [], regions,
+                 poses)
+
+
+def step_room(seed: int) -> Scene:
+    """The room with one turned step down of the module docstring drawn from `seed`."""
+    rng = np.random.default_rng(seed)
+    depth, yaw = rng.uniform(0.055, 0.09), rng.uniform(-0.8, 0.8)
+    centre = [round(float(rng.uniform(2.0, 5.0)), 3),
+              round((1 if seed % 2 else -1) * float(rng.uniform(1.0, 1.6)), 3)]
+    region = {"center": centre, "size": [0.9, 0.9], "yaw": round(float(yaw), 3),
+              "height": round(-float(depth), 4), "name": "step down", "color": [130, 130, 130]}
+    poses = [[0.5 * k, round(float(rng.uniform(-0.2, 0.2)), 3),
+              round(float(rng.uniform(-0.1, 0.1)), 3)] for k in range(15)]
+    return _room(f"step room {seed}", f"step_room({seed})", 9.1, 5.1, 0.8, [], [region],
                  poses)
 
 

@@ -1,5 +1,5 @@
 """Random hazard rooms (`benchmarks.random_rooms`): scenes drawn afresh from a seed, and
-the hazards benchmark's `--random`, `--mixed` and `--people` measures on them."""
+the hazards benchmark's `--random`, `--mixed`, `--step` and `--people` measures on them."""
 
 from __future__ import annotations
 
@@ -15,7 +15,9 @@ from benchmarks.random_rooms import (
     mixed_room,
     people_room,
     random_room,
+    step_room,
 )
+from scanmap.navigation.floor import RobotShape
 from scanmap_driver.sim import RASTER_DROP_OFF, Scene, truth_raster
 
 
@@ -110,3 +112,26 @@ def test_the_benchmark_measures_rooms_with_people_and_their_sum(capsys):
         <= total["wall_cells_eroded_strict"]
     assert total["wall_cells_eroded_deep"] <= total["wall_cells_eroded"]
 
+
+
+def test_a_step_room_holds_one_turned_step_down_just_deeper_than_a_step_beside_the_path():
+    assert step_room(5).to_dict() == step_room(5).to_dict()
+    depths = []
+    for seed in range(1, 6):
+        room = step_room(seed)
+        (region,) = room.floor_regions
+        depths.append(-region.height)
+        low, high = room.bounds()  # the walls'
+        assert (region.corners > low + 0.05).all() and (region.corners < high - 0.05).all()
+        assert (truth_raster(room).classes == RASTER_DROP_OFF).sum() > 100
+        assert_path_clear(room, seed)
+    assert min(depths) > RobotShape().step_height and max(depths) < 0.09
+    assert len(set(depths)) == 5
+
+
+def test_the_benchmark_measures_step_rooms_from_a_first_seed(capsys):
+    assert main(["--step", "1", "--first", "7", "--quick"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"step_room(7)", "worst"}
+    assert out["worst"]["rooms"] == 1
+    assert out["worst"]["drop_free"] == out["step_room(7)"]["drop_free"]
