@@ -569,17 +569,17 @@ _JUMP_LENGTHS = np.hypot(_JUMPS[:, 0], _JUMPS[:, 1])
 
 @njit(cache=True, nogil=True)
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
-                empty: np.ndarray, max_rise: float, shown: np.ndarray) -> np.ndarray:
+                empty: np.ndarray, max_rise: float, candidates: np.ndarray) -> np.ndarray:
     """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step,
     and across the `empty` cells (no hit: a gap between the laser's lines) to the cells two
     away whose heights differ by at most `max_rise` per cell of the distance (a floor's
     slope, not a step's face), where every cell between lies in `empty` (its midpoint, or
     both cells beside a knight's move), and each end is within max_step of the cells next
     to the other that are within max_step of it (`_spans_no_step`), those cells read from
-    `shown`: every candidate, also those left out of `heights` (too steep, a step's face),
-    which are the cells that show a step beside a jump's end. Jumps are tried only from
-    the few candidates the neighbours alone did not reach (a jump is the same from either
-    end), and onwards."""
+    `candidates`: every floor candidate, also those left out of `heights` (too steep, a
+    step's face), as they are what shows a step beside a jump's end. Jumps are tried only
+    from the few candidates the neighbours alone did not reach (a jump is the same from
+    either end), and onwards."""
     ny, nx = heights.shape
     inside = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
@@ -589,25 +589,25 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
             if seeds[y, x]:
                 queue[tail] = y * nx + x
                 tail += 1
-    head = tail = _spread(heights, shown, inside, queue, 0, tail, max_step, empty, max_rise,
+    head = tail = _spread(heights, candidates, inside, queue, 0, tail, max_step, empty, max_rise,
                           False)
     for y in range(ny):
         for x in range(nx):
             if inside[y, x] or np.isnan(heights[y, x]):
                 continue
             for k in range(_JUMPS.shape[0]):
-                if _can_jump(heights, shown, empty, max_step, max_rise, y, x, k) \
+                if _can_jump(heights, candidates, empty, max_step, max_rise, y, x, k) \
                         and inside[y + _JUMPS[k, 0], x + _JUMPS[k, 1]]:
                     inside[y, x] = True
                     queue[tail] = y * nx + x
                     tail += 1
                     break
-    _spread(heights, shown, inside, queue, head, tail, max_step, empty, max_rise, True)
+    _spread(heights, candidates, inside, queue, head, tail, max_step, empty, max_rise, True)
     return inside
 
 
 @njit(cache=True, nogil=True)
-def _spread(heights: np.ndarray, shown: np.ndarray, inside: np.ndarray, queue: np.ndarray,
+def _spread(heights: np.ndarray, candidates: np.ndarray, inside: np.ndarray, queue: np.ndarray,
             head: int, tail: int, max_step: float, empty: np.ndarray, max_rise: float,
             jumps: bool) -> int:
     """`grow_region`'s breadth-first growth from the cells queue[head:tail] (inside),
@@ -625,7 +625,7 @@ def _spread(heights: np.ndarray, shown: np.ndarray, inside: np.ndarray, queue: n
                     tail += 1
         for k in range(_JUMPS.shape[0] if jumps else 0):
             yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
-            if _can_jump(heights, shown, empty, max_step, max_rise, y, x, k) \
+            if _can_jump(heights, candidates, empty, max_step, max_rise, y, x, k) \
                     and not inside[yy, xx]:
                 inside[yy, xx] = True
                 queue[tail] = yy * nx + xx
@@ -634,7 +634,7 @@ def _spread(heights: np.ndarray, shown: np.ndarray, inside: np.ndarray, queue: n
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _can_jump(heights: np.ndarray, shown: np.ndarray, empty: np.ndarray, max_step: float,
+def _can_jump(heights: np.ndarray, candidates: np.ndarray, empty: np.ndarray, max_step: float,
               max_rise: float, y: int, x: int, k: int) -> bool:
     """Whether `grow_region` may jump from (y, x) by _JUMPS[k] (inside the grid)."""
     ny, nx = heights.shape
@@ -642,8 +642,8 @@ def _can_jump(heights: np.ndarray, shown: np.ndarray, empty: np.ndarray, max_ste
     return 0 <= yy < ny and 0 <= xx < nx and empty[y + _JUMPS[k, 2], x + _JUMPS[k, 3]] \
         and empty[y + _JUMPS[k, 4], x + _JUMPS[k, 5]] \
         and abs(heights[yy, xx] - heights[y, x]) <= max_rise * _JUMP_LENGTHS[k] \
-        and _spans_no_step(shown, y, x, heights[yy, xx], max_step) \
-        and _spans_no_step(shown, yy, xx, heights[y, x], max_step)
+        and _spans_no_step(candidates, y, x, heights[yy, xx], max_step) \
+        and _spans_no_step(candidates, yy, xx, heights[y, x], max_step)
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -279,18 +279,20 @@ def test_a_jump_sees_the_steep_cells_beside_its_end():
     # RANSAC inlier of the floor's plane and so a seed, and a gap between the laser's lines
     # lay between it and the floor below (2.6 cm lower: within max_rise over two cells).
     # Read from the growth's heights alone, the face's end showed no step beside it and
-    # the jump carried the floor onto the whole step-down area (a room of 30 turned step
-    # downs 5.5-9 cm deep: 144 cells FREE in one, 7 in another)
-    shown = np.zeros((7, 11), np.float32)
-    shown[:, 4], shown[:, 5], shown[:, 6], shown[:, 7:] = 0.001, -0.028, np.nan, -0.054
-    heights = shown.copy()
+    # the jump carried the floor onto the whole step-down area (of 60 rooms each with one
+    # turned step down 5.5-9 cm deep: 144 cells FREE in one, 7 in another)
+    candidates = np.zeros((7, 11), np.float32)
+    candidates[:, 4], candidates[:, 5], candidates[:, 7:] = 0.001, -0.028, -0.054
+    candidates[:, 6] = np.nan  # a gap between the laser's lines
+    heights = candidates.copy()
     heights[:, 4] = np.nan  # too steep to be floor
     seeds = np.zeros((7, 11), bool)
     seeds[:, :4] = seeds[:, 5] = True
-    empty = np.isnan(shown)
+    empty = np.isnan(candidates)
     joined = nk.grow_region(heights, seeds, 0.05, empty, 0.0134, heights)[:, 7:]
     assert joined.all()  # the step unseen
-    assert not nk.grow_region(heights, seeds, 0.05, empty, 0.0134, shown)[:, 7:].any()
+    assert not nk.grow_region(heights, seeds, 0.05, empty, 0.0134, candidates)[:, 7:].any()
+
 
 def ramp_scene() -> S.Scene:
     """A ramp rising 1 cm per 5 cm cell (11 deg) from x = 0.5 m to a 0.3 m platform."""
