@@ -113,7 +113,6 @@ def test_the_benchmark_measures_rooms_with_people_and_their_sum(capsys):
     assert total["wall_cells_eroded_deep"] <= total["wall_cells_eroded"]
 
 
-
 def test_a_step_room_holds_one_turned_step_down_just_deeper_than_a_step_beside_the_path():
     assert step_room(5).to_dict() == step_room(5).to_dict()
     depths = []

@@ -414,7 +414,6 @@ def test_no_drop_off_is_free_in_the_rooms_that_showed_one(room, seed, scans):
     assert hazard_run(scans, scene=room(seed))["drop_free_any_scan"] == 0
 
 
-
 def test_a_turned_step_down_just_deeper_than_a_step_is_never_free():
     # A step down 5.5 cm deep turned 38 deg (one of 60 rooms drawn to probe them): a jump
     # across a gap between the laser's lines set off from a level the face left 2.8 cm
@@ -425,6 +424,7 @@ def test_a_turned_step_down_just_deeper_than_a_step_is_never_free():
     scene = room({"center": [3.769, -1.388], "size": [0.9, 0.9], "yaw": 0.669,
                   "height": -0.055, "name": "step down"}, poses)
     assert hazard_run(scene=scene)["drop_free_any_scan"] == 0
+
 
 @pytest.mark.parametrize("seed", [210, 404])
 def test_a_ramps_raised_end_is_floor_where_only_its_faces_upper_part_was_seen(seed):
