@@ -43,6 +43,12 @@ Insertion is one scan at a time, in three passes:
    seen passing between them: a cell holds one surface until
    observations show more.
 
+The insertion kernel and its helpers allocate nothing, and are compiled without Numba's
+reference counting (`_nrt=False`; `insert_scan` allocates their scratch): the atomic
+counts Numba adds for each array a helper takes, which its pruning pass leaves in
+branching code, took a third of an insertion (perf on the corridor: NRT_incref and
+NRT_decref 35 % of its samples). An allocation among them fails to compile.
+
 Log-odds are clamped at `l_max`, so an object seen for thousands of scans still clears
 within ceil(l_max / (max_misses * l_miss)) scans once it has gone.
 
@@ -222,19 +228,28 @@ def _touch(lev_n, lev_flag, li, scan) -> None:
         lev_flag[li] = 0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
+def _copy_level(lev_f, lev_n, lev_flag, dst, src) -> None:
+    """Copy level record src over record dst, field by field (a row assigned whole needs
+    a temporary copy, so the reference counting these kernels are compiled without)."""
+    for f in range(N_FLOAT_FIELDS):
+        lev_f[dst, f] = lev_f[src, f]
+    for f in range(N_INT_FIELDS):
+        lev_n[dst, f] = lev_n[src, f]
+    lev_flag[dst] = lev_flag[src]
+
+
+@njit(cache=True, nogil=True, _nrt=False)
 def _remove(lev_f, lev_n, lev_flag, nlev, off, k, levels) -> None:
     """Delete level k of cell off, keeping the others sorted and packed."""
     n = np.int64(nlev[off])
     base = off * levels
     for j in range(base + k, base + n - 1):
-        lev_f[j] = lev_f[j + 1]
-        lev_n[j] = lev_n[j + 1]
-        lev_flag[j] = lev_flag[j + 1]
+        _copy_level(lev_f, lev_n, lev_flag, j, j + 1)
     nlev[off] = n - 1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels) -> None:
     """Merge level k+1 of cell off into its level k and close the slot it leaves."""
     ia = off * levels + k
@@ -296,9 +311,7 @@ def _open_level(lev_f, lev_n, lev_flag, nlev, off, z, levels) -> int:
     while k < n and lev_f[base + k, LO] < z:
         k += 1
     for j in range(base + n, base + k, -1):
-        lev_f[j] = lev_f[j - 1]
-        lev_n[j] = lev_n[j - 1]
-        lev_flag[j] = lev_flag[j - 1]
+        _copy_level(lev_f, lev_n, lev_flag, j, j - 1)
     nlev[off] = n + 1
     return k
 
@@ -362,7 +375,7 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
     return fresh
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _closed_gap(lev_f, base, k, free_mask, z_min, dz) -> bool:
     """No height bin strictly between levels k and k+1 has been seen free."""
     b0 = int(np.floor((lev_f[base + k, HI] - z_min) / dz)) + 1
@@ -373,7 +386,7 @@ def _closed_gap(lev_f, base, k, free_mask, z_min, dz) -> bool:
     return free_mask & gap == 0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _consolidate(lev_f, lev_n, lev_flag, nlev, off, z, free_mask, z_min, dz, levels) -> None:
     """Merge the level holding height z with its neighbours unless a ray was seen passing
     between them.
@@ -425,7 +438,7 @@ def _touches_any(lev_f, n, base, za, zb, bits, z_min, dz) -> bool:
     return False
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss) -> int:
     """One pass through level k of cell off: a miss, unless it had `max_misses` this scan.
 
@@ -443,18 +456,13 @@ def _miss(lev_f, lev_n, lev_flag, nlev, off, k, fp, levels, max_miss) -> int:
     return 1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _split(lev_f, lev_n, lev_flag, nlev, off, k, za, zb, levels) -> None:
     """Split level k of cell off around the free span [za, zb] into two levels."""
     base = off * levels
     li = base + k
-    for j in range(base + np.int64(nlev[off]), li + 1, -1):
-        lev_f[j] = lev_f[j - 1]
-        lev_n[j] = lev_n[j - 1]
-        lev_flag[j] = lev_flag[j - 1]
-    lev_f[li + 1] = lev_f[li]
-    lev_n[li + 1] = lev_n[li]
-    lev_flag[li + 1] = lev_flag[li]
+    for j in range(base + np.int64(nlev[off]), li, -1):  # level k itself too
+        _copy_level(lev_f, lev_n, lev_flag, j, j - 1)
     lev_f[li, HI] = za
     lev_f[li, SHI] = min(lev_f[li, SHI], za)
     lev_f[li + 1, LO] = zb
@@ -462,7 +470,7 @@ def _split(lev_f, lev_n, lev_flag, nlev, off, k, za, zb, levels) -> None:
     nlev[off] += 1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def segment_distance(px: float, py: float, ax: float, ay: float, bx: float,
                      by: float) -> float:
     """Distance from point (px, py) to the segment (ax, ay)-(bx, by)."""
@@ -500,7 +508,7 @@ _NEIGHBOURS = np.array([(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dx
                        np.int64)  # (dx, dy) of the 8 cells round a cell
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
                    levels, static_scans) -> bool:
     """A ray (x-y direction path[4:6]) that runs along a static face through level record
@@ -545,7 +553,7 @@ def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp,
     return found >= 2 and along and not (left and right)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _beside_seen_longer(lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, tol, shift,
                         levels) -> bool:
     """Whether one of the 8 cells round cell (ix, iy) holds a level hit in two scans or
@@ -562,7 +570,7 @@ def _beside_seen_longer(lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, tol, shi
     return False
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bits, path, fp,
                shift, levels, max_miss, static_scans, scan, through) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
@@ -650,6 +658,18 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                 lev_flag: np.ndarray, nlev: np.ndarray, cells: np.ndarray, fp: np.ndarray,
                 ip: np.ndarray) -> tuple[int, int, int]:
     """Insert one scan (rays with cls == POINT_OK); returns (hits, cleared, last ray key)."""
+    n = points.shape[0]
+    return _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, cells,
+                        fp, ip, np.empty(n, np.int64), np.empty(n, np.float64),
+                        np.empty(6, np.float64))
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, cells, fp, ip,
+                 fresh, fresh_z, path) -> tuple[int, int, int]:
+    """`insert_scan` with its scratch: (N,) cells where a hit started a level and the
+    height it started at, and (6,) a ray's x-y segment in a cell, from the cell's centre,
+    and its x-y direction (see _beside_static)."""
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
     shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
@@ -660,8 +680,6 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
     scan = np.uint32(ip[IP_SCAN])
     scan64 = np.uint64(ip[IP_SCAN])
     n_hits = 0
-    fresh = np.empty(points.shape[0], np.int64)  # cells where a hit started a level
-    fresh_z = np.empty(points.shape[0], np.float64)  # and the height it started at
     n_fresh = 0
     for i in range(points.shape[0]):  # pass 1: hits
         if cls[i] != POINT_OK:
@@ -681,8 +699,6 @@ def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
         cells[off, SCAN] = scan64
         n_hits += 1
     n_cleared = 0
-    path = np.empty(6, np.float64)  # a ray's x-y segment in a cell, from the cell's
-    # centre, and its x-y direction
     key = np.uint64(ip[IP_KEY])
     group = (-1, -1, -1)
     for i in range(points.shape[0]):  # pass 2: rays, traced from the hit back to the origin

@@ -435,7 +435,7 @@ def floor_samples(levels: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _along(samples: np.ndarray, y: int, x: int, ux: float, uy: float, worst: float) -> float:
     """Where the sample of cell (y, x) lies along the unit direction (ux, uy), in cells
     from the cell's centre (`samples` (ny, nx, 2): x and y offsets in cells, NaN where not
@@ -463,8 +463,19 @@ def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: 
     with `unlit_corners` of any cells not known floor, hit or not: the floor's edge turns
     there (a hole's or a wall's corner; a hole's inside often holds no hit at all), and the
     diagonal between two rim cells runs outside the floor."""
-    ny, nx = known.shape
     out = known.copy()
+    _interpolate_into(out, known, hit, heights, size, step, unlit_corners, samples)
+    return out
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _interpolate_into(out: np.ndarray, known: np.ndarray, hit: np.ndarray,
+                      heights: np.ndarray, size: int, step: float, unlit_corners: bool,
+                      samples: np.ndarray) -> None:
+    """`interpolated` into `out`, a copy of `known`. Compiled without Numba's reference
+    counting, like `scanmap.grid._kernels`' insertion: the counts of the arrays its
+    helpers take were most of its time."""
+    ny, nx = known.shape
     widest = size + 2.0  # the opening bridged, sample to sample
     far = widest + (1.0 if samples.shape[0] else -1.0)  # cell to cell
     for y in range(ny):
@@ -505,7 +516,6 @@ def interpolated(known: np.ndarray, hit: np.ndarray, heights: np.ndarray, size: 
                 if opening <= widest:
                     out[y, x] = True
                     break
-    return out
 
 
 def interpolated_reference(known: np.ndarray, hit: np.ndarray, heights: np.ndarray,
