@@ -234,6 +234,19 @@ def _reliable_ranges(returned: np.ndarray, floor: np.ndarray, reach: np.ndarray,
     return ((total >= MIN_JUDGED) & (shown >= LIT_SHARE * total))[index]
 
 
+def frame_slots(frame_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`np.unique(frame_index, return_index=True, return_inverse=True)`: the frames, the
+    first point of each and each point's frame slot; without sorting when the points come
+    frame by frame, as a scan's do (the sort was a third of `unlit_floor`)."""
+    frame_index = np.asarray(frame_index)
+    if np.any(frame_index[1:] < frame_index[:-1]):
+        return np.unique(frame_index, return_index=True, return_inverse=True)
+    starts = np.ones(len(frame_index), bool)
+    starts[1:] = frame_index[1:] != frame_index[:-1]
+    first = np.flatnonzero(starts)
+    return frame_index[first], first, np.cumsum(starts) - 1
+
+
 def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
                 ) -> np.ndarray:
     """(M, 3) points in map (by `pose`, as `scan_rays` takes it) of the floor each frame of
@@ -241,7 +254,7 @@ def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
     pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
     if not len(scan):
         return np.zeros((0, 3))
-    frames, first, slot = np.unique(scan.frame_index, return_index=True, return_inverse=True)
+    frames, first, slot = frame_slots(scan.frame_index)
     cam = model.camera
     returned = np.zeros((len(frames), cam.width), bool)
     floor = np.zeros_like(returned)

@@ -21,6 +21,7 @@ from scanmap.grid.unlit import (
     MIN_RUN,
     MIN_SPAN,
     _line_returns,
+    frame_slots,
     unlit_floor,
     unlit_lines,
 )
@@ -79,6 +80,17 @@ def near_patch(points: np.ndarray, scene: Scene, margin: float = 0.01) -> np.nda
     region = scene.floor_regions[0]
     return np.any([region.contains(points[:, 0] + dx, points[:, 1] + dy)
                    for dx in (-margin, 0.0, margin) for dy in (-margin, 0.0, margin)], axis=0)
+
+
+@given(arrays(np.int32, st.integers(0, 40), elements=st.integers(0, 6)), st.booleans())
+def test_frame_slots_are_numpys_unique(frame_index, in_order):
+    """Frame by frame (a scan's order, without a sort) or not, the frames, their first
+    points and the points' slots are what np.unique gives."""
+    if in_order:
+        frame_index = np.sort(frame_index)
+    expected = np.unique(frame_index, return_index=True, return_inverse=True)
+    for got, want in zip(frame_slots(frame_index), expected, strict=True):
+        np.testing.assert_array_equal(got, want)
 
 
 def test_a_black_patch_is_found_unlit_and_no_lit_floor_is():
