@@ -236,8 +236,9 @@ def _touch(lev_n, lev_flag, li, scan) -> None:
 
 @njit(cache=True, nogil=True, inline="always")
 def _copy_level(lev_f, lev_n, lev_flag, dst, src) -> None:
-    """Copy level record src over record dst, field by field (a row assigned whole needs
-    a temporary copy, so the reference counting these kernels are compiled without)."""
+    """Copy level record src over record dst, field by field: assigning a whole row may
+    need a temporary copy, an allocation the kernels compiled without reference counting
+    cannot make."""
     for f in range(N_FLOAT_FIELDS):
         lev_f[dst, f] = lev_f[src, f]
     for f in range(N_INT_FIELDS):
