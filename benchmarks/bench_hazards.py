@@ -2,13 +2,13 @@
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
-        [--mixed N] [--step N] [--people N] [--first SEED]
+        [--mixed N] [--step N] [--ramp N] [--people N] [--first SEED]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
-takes them); with `--random N`, `--mixed N`, `--step N` or `--people N`, on N random
-hazard rooms, mixed rooms, rooms with one step down just deeper than the robot's step or
-rooms with people (`random_rooms`, seeds from `--first`, 1 by default): a method must
-hold on scenes it was not built on.
+takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N` or `--people N`, on N
+random hazard rooms, mixed rooms, rooms with one step down just deeper than the robot's
+step, rooms with turned ramps near max_slope or rooms with people (`random_rooms`, seeds
+from `--first`, 1 by default): a method must hold on scenes it was not built on.
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -73,7 +73,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
-from benchmarks.random_rooms import mixed_room, people_room, random_room, step_room
+from benchmarks.random_rooms import mixed_room, people_room, ramp_room, random_room, step_room
 from scanmap.evaluation.ground_truth import drop_off_errors
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
@@ -523,7 +523,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="measure this scene file (or built-in scene) instead: the "
                         "drop-off and ramp measures, and with people the ghost ones; "
                         "repeatable")
-    families = {"random": random_room, "mixed": mixed_room, "step": step_room}
+    families = {"random": random_room, "mixed": mixed_room, "step": step_room,
+                "ramp": ramp_room}
     for family in families:
         parser.add_argument(f"--{family}", type=int, metavar="N",
                             help=f"instead: the drop-off and ramp measures on N {family} "
@@ -546,7 +547,7 @@ def main(argv: list[str] | None = None) -> int:
     rooms = people_rooms(args.people or 0, 24 if args.quick else None, args.first)
     if rooms:
         print(json.dumps(rooms | {"sum": people_summary(list(rooms.values()))}, indent=1))
-    if not (args.scene or args.random or args.mixed or args.step or args.people):
+    if not (args.scene or args.random or args.mixed or args.step or args.ramp or args.people):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))

@@ -13,6 +13,11 @@ a ramp of 4-11 deg (traversable) and one of 20-30 deg (not), each turned by up t
 while nothing in it or at its rim has been seen, is a patch the rules may take for a gap
 between samples.
 
+`ramp_room(seed)`: the random room of the same seed but for its ramps, which lie where only
+the slope's estimate tells them apart: the gentle one 12-14.7 deg, the steep one 15.5-17.5
+deg (`FloorConfig.max_slope` is 15 deg), each turned by up to 46 deg, rising across the
+turn, so the laser's lines cross their cells anywhere.
+
 `mixed_room(seed)` holds what those rooms lack, in a room 13.6 m long and 4-6 m wide:
 three holes 0.3-0.7 m wide and 0.1-0.8 m deep, a hole 0.3-0.6 m wide whose inside returns
 nothing (black-lined), black carpet 0.3-1.0 m on a side, a stairwell 2 m deep, a step down,
@@ -49,8 +54,14 @@ POSES = 26
 POSE_STEP = 0.3  # m along x between poses
 
 
-def _region(kind: str, x: float, y: float, rng: np.random.Generator) -> dict:
-    """One hazard (a scene file's floor region) centred near (x, y)."""
+RAMPS = {"ramp": (4.0, 11.0), "steep ramp": (20.0, 30.0)}  # deg, square to the room
+NEAR_MAX_SLOPE = {"ramp": (12.0, 14.7), "steep ramp": (15.5, 17.5)}  # deg, turned
+
+
+def _region(kind: str, x: float, y: float, rng: np.random.Generator,
+            near_max_slope: bool = False) -> dict:
+    """One hazard (a scene file's floor region) centred near (x, y); a ramp as in
+    `ramp_room` with `near_max_slope`."""
     turned = rng.random() < 0.6 and "ramp" not in kind
     region = {"center": [round(x, 3), round(y, 3)], "name": kind, "color": [130, 130, 130],
               "yaw": round(float(rng.uniform(-0.8, 0.8)), 3) if turned else 0.0}
@@ -67,11 +78,16 @@ def _region(kind: str, x: float, y: float, rng: np.random.Generator) -> dict:
         region |= {"size": [0.7, 0.6], "height": round(rng.uniform(0.08, 0.3), 3)}
     elif kind == "low step":
         region |= {"size": [0.7, 0.7], "height": round(rng.uniform(0.01, 0.04), 3)}
-    else:  # a ramp rising along x from the floor at its low edge
-        degrees = rng.uniform(4.0, 11.0) if kind == "ramp" else rng.uniform(20.0, 30.0)
+    else:  # a ramp rising along its x from the floor at its low edge
+        degrees = rng.uniform(*(NEAR_MAX_SLOPE if near_max_slope else RAMPS)[kind])
         gradient = math.tan(math.radians(degrees))
         region |= {"size": [1.0, 0.9], "gradient": [round(gradient, 4), 0.0],
                    "height": round(0.5 * gradient + 2e-4, 4)}  # rounded up: never below 0
+        if near_max_slope:
+            yaw = round(float(rng.uniform(-0.8, 0.8)), 3)
+            region |= {"yaw": yaw, "height": round(0.5 * gradient + 5e-4, 4),
+                       "gradient": [round(gradient * math.cos(yaw), 5),
+                                    round(gradient * math.sin(yaw), 5)]}
     return region
 
 
@@ -162,11 +178,21 @@ def _room(name: str, source: str, length: float, width: float, ambient: float,
 
 def random_room(seed: int) -> Scene:
     """The room of the module docstring drawn from `seed` (the same seed, the same room)."""
+    return _hazard_room(seed, False)
+
+
+def ramp_room(seed: int) -> Scene:
+    """`random_room(seed)` with its ramps near max_slope, turned (the module docstring)."""
+    return _hazard_room(seed, True)
+
+
+def _hazard_room(seed: int, near_max_slope: bool) -> Scene:
+    """`random_room` or, with `near_max_slope`, `ramp_room`."""
     rng = np.random.default_rng(seed)
     kinds = list(HAZARDS)
     rng.shuffle(kinds)
     regions = [_region(kind, 1.0 + k + rng.uniform(-0.2, 0.2),
-                       (1.4 if k % 2 else -1.4) + rng.uniform(-0.1, 0.1), rng)
+                       (1.4 if k % 2 else -1.4) + rng.uniform(-0.1, 0.1), rng, near_max_slope)
                for k, kind in enumerate(kinds)]
     phase, amplitude = rng.uniform(0.0, 2 * math.pi), rng.uniform(0.1, 0.35)
     poses = []
@@ -175,7 +201,8 @@ def random_room(seed: int) -> Scene:
         slope = amplitude / 1.3 * math.cos(x / 1.3 + phase)
         poses.append([round(x, 3), round(amplitude * math.sin(x / 1.3 + phase), 4),
                       round(math.atan(slope) + rng.uniform(-0.05, 0.05), 4)])
-    return _room(f"random room {seed}", f"random_room({seed})", 10.1, 5.1, 0.8, [], regions,
+    family = "ramp" if near_max_slope else "random"
+    return _room(f"{family} room {seed}", f"{family}_room({seed})", 10.1, 5.1, 0.8, [], regions,
                  poses)
 
 

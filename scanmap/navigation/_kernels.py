@@ -732,17 +732,26 @@ def bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndar
 
 
 @njit(cache=True, nogil=True)
-def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -> np.ndarray:
-    """Slope (rad) of each candidate cell's floor: the steepest of the planes fitted to its
-    height and those of the candidates within `radius` cells at or above it (up to
-    `max_step`: the other side of a step is another surface), at or below it, and both.
-    A cell at a crease lies on one of the two surfaces, and the side its height is on
-    holds that surface alone: the first row of a steep ramp, a few mm above the floor, is
-    steep (one plane over both surfaces bent it to half the ramp's slope), and the floor
-    before it, the lowest there, keeps the gentler mixed fit above it. Each fit
-    (`_plane_slope`): with fewer than six cells, or all on one line (the foot of a wall, a
-    laser line's arc), the slope along them: a chain of cells each a little lower than
-    the last is steep even where no plane fits it; NaN with fewer than three."""
+def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step: float,
+                res: float, plane_noise: float) -> np.ndarray:
+    """Slope (rad) of each candidate cell's floor, fitted to the candidates within `radius`
+    cells and `max_step` of its height (the other side of a step is another surface).
+    Where the plane over them all, each where its hits lie (its cell's centre plus
+    `offsets`, ny x nx x 2: the mean hit's x, y offset; a turned ramp's lines cross its
+    cells off centre, up to 1.3 cm up or down a 15 deg slope from the centre's height),
+    fits within `plane_noise` (RMS, m), the cell lies on one surface and that plane's
+    slope is its own. Elsewhere a crease or a step's face may run through, and, as
+    before the hits' positions were used, the slope is the steepest of the planes fitted
+    at the cells' centres to them all, to those at or above the cell's height and to
+    those at or below it (taken everywhere, the steepest of three noisy fits overshot a
+    14 deg ramp by 1-2.6 deg). A cell at a crease lies on one of the two surfaces, and
+    the side its height is on holds that surface alone: the first row of a steep ramp,
+    a few mm above the floor, is steep (one plane over both surfaces bent it to half the
+    ramp's slope), and the floor before it, the lowest there, keeps the gentler mixed
+    fit above it. Each fit (`_plane_slope`): with fewer than six cells, or all near one
+    line (the foot of a wall, a laser line's arc), the slope along them: a chain of
+    cells each a little lower than the last is steep even where no plane fits it; NaN
+    with fewer than three."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
     none = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -751,26 +760,50 @@ def local_slope(heights: np.ndarray, radius: int, max_step: float, res: float) -
             hc = heights[y, x]
             if np.isnan(hc):
                 continue
-            # Plane-fit sums over all the cells within reach and a step, over those above
-            # (dz > 0) and over those level with it (dz = 0: on both sides); below = all -
-            # above (the level ones add nothing to the height sums)
-            # (above: weighted 1 or 0, no branch, as the signs of a noisy floor's heights
-            # are a coin toss to the branch predictor; level is rare but for the cell)
-            every, above, level = none, none, none
+            # The plane over the cells within reach and a step, where their hits lie
+            at_hits, szz = none, 0.0  # and the sum of their squared heights
+            ox, oy = offsets[y, x, 0], offsets[y, x, 1]
             for yy in range(max(y - radius, 0), min(y + radius + 1, ny)):
                 for xx in range(max(x - radius, 0), min(x + radius + 1, nx)):
                     dz = heights[yy, xx] - hc
                     if abs(dz) <= max_step:  # False for NaN
-                        px, py = (xx - x) * res, (yy - y) * res
-                        every = _with_cell(every, px, py, dz, 1.0)
-                        above = _with_cell(above, px, py, dz, 1.0 if dz > 0.0 else 0.0)
-                        if dz == 0.0:
-                            level = _with_cell(level, px, py, dz, 1.0)
-            slope = max(_plane_slope(every, res), _plane_slope(_sum(above, level, 1.0), res),
-                        _plane_slope(_sum(every, above, -1.0), res))
+                        szz += dz * dz
+                        at_hits = _with_cell(at_hits, (xx - x) * res + offsets[yy, xx, 0] - ox,
+                                             (yy - y) * res + offsets[yy, xx, 1] - oy, dz, 1.0)
+            if _plane_rms(at_hits, szz, res) <= plane_noise:  # one surface
+                slope = _plane_slope(at_hits, res)
+            else:  # maybe a crease: the steepest
+                slope = _steepest_at_centres(heights, radius, max_step, res, y, x)
             if slope > -np.inf:  # a fit on either side or over both
                 out[y, x] = slope
     return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _steepest_at_centres(heights: np.ndarray, radius: int, max_step: float, res: float,
+                         y: int, x: int) -> float:
+    """`local_slope`'s steepest of the planes fitted at the cells' centres to the
+    candidates within `radius` and `max_step` of cell (y, x), to those at or above its
+    height and to those at or below it; -inf without any."""
+    ny, nx = heights.shape
+    hc = heights[y, x]
+    none = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    # Sums over all, over those above (dz > 0) and over those level with it (dz = 0: on
+    # both sides); below = all - above (the level ones add nothing to the height sums)
+    # (above: weighted 1 or 0, no branch, as the signs of a noisy floor's heights are a
+    # coin toss to the branch predictor; level is rare but for the cell)
+    every, above, level = none, none, none
+    for yy in range(max(y - radius, 0), min(y + radius + 1, ny)):
+        for xx in range(max(x - radius, 0), min(x + radius + 1, nx)):
+            dz = heights[yy, xx] - hc
+            if abs(dz) <= max_step:  # False for NaN
+                px, py = (xx - x) * res, (yy - y) * res
+                every = _with_cell(every, px, py, dz, 1.0)
+                above = _with_cell(above, px, py, dz, 1.0 if dz > 0.0 else 0.0)
+                if dz == 0.0:
+                    level = _with_cell(level, px, py, dz, 1.0)
+    return max(_plane_slope(every, res), _plane_slope(_sum(above, level, 1.0), res),
+               _plane_slope(_sum(every, above, -1.0), res))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -791,22 +824,54 @@ def _sum(a: tuple, b: tuple, sign: float) -> tuple:
             a[8] + sign * b[8])
 
 
+PLANE_SPREAD = 0.2  # cells: the least RMS spread of a plane fit's points across their line
+
+
 @njit(cache=True, nogil=True, inline="always")
-def _plane_slope(s: tuple, res: float) -> float:
-    """Slope (rad) of the least-squares plane of the cells summed in `s` (`_with_cell`;
-    see `local_slope`); -inf with fewer than three."""
+def _gradient(s: tuple, res: float) -> tuple[float, float]:
+    """Gradient (dz/dx, dz/dy) of the least-squares plane of the cells summed in `s`
+    (`_with_cell`); NaN with fewer than six, or lying within PLANE_SPREAD cells (RMS) of
+    one line: one laser line's hits along a row of cells tell nothing of the slope across
+    it, and a plane through them tilts with their noise (without this, 931 of the 1426
+    floor candidates of random room 603's first scan, its lines sparse, came out steep,
+    not 59)."""
     n, sx, sy, sz, sxx, sxy, syy, sxz, syz = s
-    if n < 3:
-        return -np.inf
     cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
     cxz, cyz = sxz - sx * sz / n, syz - sy * sz / n
     det = cxx * cyy - cxy * cxy
-    if n >= 6 and det > 1e-12 * res ** 4:
-        gx = (cyy * cxz - cxy * cyz) / det
-        gy = (cxx * cyz - cxy * cxz) / det
+    half = 0.5 * (cxx + cyy)
+    across = half - math.sqrt(max(half * half - det, 0.0))  # n x the least variance
+    if n < 6 or not across > n * (PLANE_SPREAD * res) ** 2:
+        return np.nan, np.nan
+    return (cyy * cxz - cxy * cyz) / det, (cxx * cyz - cxy * cxz) / det
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plane_rms(s: tuple, szz: float, res: float) -> float:
+    """RMS residual (m) of the plane `_gradient` fits to the cells summed in `s` (`szz`:
+    their squared heights); inf where it fits none."""
+    gx, gy = _gradient(s, res)
+    if np.isnan(gx):
+        return np.inf
+    n, sx, sy, sz = s[0], s[1], s[2], s[3]
+    cxz, cyz = s[7] - sx * sz / n, s[8] - sy * sz / n
+    return math.sqrt(max(szz - sz * sz / n - gx * cxz - gy * cyz, 0.0) / n)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plane_slope(s: tuple, res: float) -> float:
+    """Slope (rad) of the plane `_gradient` fits to the cells summed in `s` (see
+    `local_slope`), or along their principal line where it fits none; -inf with fewer
+    than three."""
+    n, sx, sy, sz, sxx, _, syy, sxz, syz = s
+    if n < 3:
+        return -np.inf
+    gx, gy = _gradient(s, res)
+    if not np.isnan(gx):
         return math.atan(math.hypot(gx, gy))
+    cxx, cyy = sxx - sx * sx / n, syy - sy * sy / n
     if cxx + cyy > 0.0:  # the least-squares slope along their principal line
-        return math.atan(math.hypot(cxz, cyz) / (cxx + cyy))
+        return math.atan(math.hypot(sxz - sx * sz / n, syz - sy * sz / n) / (cxx + cyy))
     return -np.inf
 
 

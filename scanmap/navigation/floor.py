@@ -176,7 +176,10 @@ class FloorConfig:
     taken for such a board (a table top, a seat, a shelf).
     coverage_reach: on known floor, band heights seen free this far (m) from a cell count
     for its coverage (0: the cell alone); the cell itself must have seen one.
-    slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over.
+    slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over;
+    plane_noise: the RMS (m) within which its cells fit one plane for it to be one
+    surface, without a crease (`_kernels.local_slope`): 3 mm, below the 4.4 mm a
+    16 deg ramp's first row leaves with the floor before it, noise-free.
     drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
     without observed floor, no farther from the nearest place the robot stood than they
     (and a cell), nearer by at most rim_shadow times their range (and a cell): rays
@@ -229,6 +232,7 @@ class FloorConfig:
     seed: int = 0
     detect: bool = True
     slope_reach: float = 0.1
+    plane_noise: float = 0.003
     drop_reach: float = 0.5
     rim_shadow: float = 0.1
     max_hole: float = 0.3
@@ -434,7 +438,9 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     res = layers.resolution
     xs, ys = layers.cell_centers()
     cand = nk.floor_candidates(layers.levels, layers.nlev, params.thickness, params.clearance)
-    slope = nk.local_slope(cand, max(round(params.slope_reach / res), 1), robot.step_height, res)
+    hits_at = np.ascontiguousarray(layers.levels[:, :, 0, gk.MX:gk.MY + 1])  # the candidates'
+    slope = nk.local_slope(cand, hits_at, max(round(params.slope_reach / res), 1),
+                           robot.step_height, res, params.plane_noise)
     steep = slope > params.max_slope  # False for NaN
     bridges = nk.bridged_steps(cand, robot.step_height, _bridge_reach(robot, params, res)) \
         & ~steep  # a step's face

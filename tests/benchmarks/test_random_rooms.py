@@ -1,9 +1,11 @@
 """Random hazard rooms (`benchmarks.random_rooms`): scenes drawn afresh from a seed, and
-the hazards benchmark's `--random`, `--mixed`, `--step` and `--people` measures on them."""
+the hazards benchmark's `--random`, `--mixed`, `--step`, `--ramp` and `--people` measures
+on them."""
 
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 
@@ -14,11 +16,12 @@ from benchmarks.random_rooms import (
     PEOPLE_SCANS,
     mixed_room,
     people_room,
+    ramp_room,
     random_room,
     step_room,
 )
-from scanmap.navigation.floor import RobotShape
-from scanmap_driver.sim import RASTER_DROP_OFF, Scene, truth_raster
+from scanmap.navigation.floor import FloorConfig, RobotShape
+from scanmap_driver.sim import RASTER_DROP_OFF, RASTER_FLOOR, Scene, truth_raster
 
 
 def assert_path_clear(room: Scene, seed: int) -> None:
@@ -44,6 +47,29 @@ def test_every_room_holds_drop_offs_and_ramps_and_a_path_clear_of_them():
         raster = truth_raster(room)
         assert (raster.classes == RASTER_DROP_OFF).sum() > 100
         assert sum(any(region.gradient) for region in room.floor_regions) == 2
+        assert_path_clear(room, seed)
+
+
+def test_a_ramp_rooms_ramps_are_turned_and_lie_either_side_of_max_slope():
+    robot, max_slope = RobotShape(), FloorConfig().max_slope
+    assert ramp_room(2).to_dict() == ramp_room(2).to_dict()
+    for seed in range(1, 6):
+        room = ramp_room(seed)
+        assert sorted(region.name for region in room.floor_regions) == sorted(HAZARDS)
+        raster = truth_raster(room, 0.05, robot.step_height, robot.height, max_slope=max_slope)
+        for region in room.floor_regions:
+            if not any(region.gradient):
+                continue
+            degrees = math.degrees(math.atan(math.hypot(*region.gradient)))
+            low, high = (12.0, 14.7) if region.name == "ramp" else (15.5, 17.5)
+            assert low - 0.01 <= degrees <= high + 0.01, (seed, region.name, degrees)
+            # turned with its polygon: its low edge on the floor, its high one a metre on
+            corners = np.sort(region.height_at(region.corners[:, 0], region.corners[:, 1]))
+            assert 0.0 <= corners[0] <= corners[1] < 0.002, (seed, region.name, corners)
+            rise = math.tan(math.radians(degrees))
+            assert np.allclose(corners[2:], rise, atol=0.002), (seed, region.name, corners)
+            middle = region.corners.mean(axis=0)[None]
+            assert (raster.class_at(middle)[0] == RASTER_FLOOR) == (region.name == "ramp")
         assert_path_clear(room, seed)
 
 

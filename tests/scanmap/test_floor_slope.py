@@ -1,6 +1,7 @@
-"""The floor's local slope (`_kernels.local_slope`) against the closed form of a plane, and
-a chain of cells too thin for a plane: the foot of a wall, a laser line's arc; the cells a
-step's face leaves between its two floors (`_kernels.bridged_steps`)."""
+"""The floor's local slope (`_kernels.local_slope`) against the closed form of a plane,
+sampled at the cells' centres or where their hits lie, clean or noisy, and a chain of
+cells too thin for a plane: the foot of a wall, a laser line's arc; the cells a step's
+face leaves between its two floors (`_kernels.bridged_steps`)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,16 @@ RES = 0.05
 STEP = 0.05
 REACH = 2
 REACH_OF_A_STEP = floor._bridge_reach(RobotShape(), FloorConfig(), RES)  # `bridged_steps`'
+NOISE = FloorConfig().plane_noise
+MAX_SLOPE = FloorConfig().max_slope
+
+
+def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None = None,
+             noise: float = NOISE) -> np.ndarray:
+    """`local_slope` of candidate heights sampled at the cells' centres (or `offsets`)."""
+    if offsets is None:
+        offsets = np.zeros(heights.shape + (2,))
+    return nk.local_slope(heights, offsets, REACH, step, RES, noise)
 
 
 @settings(max_examples=60, deadline=None)
@@ -26,7 +37,7 @@ REACH_OF_A_STEP = floor._bridge_reach(RobotShape(), FloorConfig(), RES)  # `brid
 def test_the_slope_of_a_plane_is_its_gradient(gx, gy, base):
     y, x = np.mgrid[0:9, 0:9] * RES
     heights = (base + gx * x + gy * y).astype(np.float64)
-    slope = nk.local_slope(heights, REACH, 10.0, RES)
+    slope = slope_of(heights, 10.0)
     assert math.isclose(slope[4, 4], math.atan(math.hypot(gx, gy)), abs_tol=1e-4)
 
 
@@ -38,7 +49,7 @@ def test_a_line_of_cells_has_the_slope_along_it(g, direction):
     heights = np.full((11, 11), np.nan)
     for k in range(-5, 6):
         heights[5 + k * dy, 5 + k * dx] = g * k * RES * math.hypot(dy, dx)
-    slope = nk.local_slope(heights, REACH, 10.0, RES)
+    slope = slope_of(heights, 10.0)
     assert math.isclose(slope[5, 5], math.atan(abs(g)), abs_tol=1e-4)
 
 
@@ -47,30 +58,66 @@ def test_a_staircase_of_small_steps_along_a_wall_is_steep():
     # 39 deg slope down, not floor to drive on, though every step alone is climbable
     heights = np.full((7, 12), np.nan)
     heights[3] = -0.04 * np.arange(12)
-    slope = nk.local_slope(heights, REACH, STEP, RES)
+    slope = slope_of(heights)
     assert (slope[3, 1:-1] > math.radians(30.0)).all()
 
 
 @settings(max_examples=40, deadline=None)
 @given(degrees=st.floats(3.0, 35.0))
-def test_the_first_row_of_a_ramp_has_the_ramps_slope_and_the_floor_before_it_less(degrees):
+def test_the_first_row_of_a_ramp_is_steep_only_when_the_ramp_is(degrees):
     # Floor up to row 4, a ramp rising from the boundary between rows 4 and 5: row 5's
-    # centre lies tan(slope) x 2.5 cm up. One plane over both surfaces gave it about half
-    # the ramp's slope (a 20 deg ramp's first row counted as floor); the cells at or above
-    # it are the ramp alone, so its slope is the ramp's, and the floor before it, the
-    # lowest there, stays under max_slope (7 deg beside a 20 deg ramp, 14 beside 35)
+    # centre lies tan(slope) x 2.5 cm up. One plane over both surfaces gives it about 2/3
+    # of the ramp's slope (a 20 deg ramp's first row counted as floor); where that plane
+    # fits them badly (a crease: any ramp steeper than max_slope), the cells at or above
+    # it are the ramp alone, so its slope is the ramp's. The floor before it, the lowest
+    # there, stays under max_slope (7 deg beside a 20 deg ramp, 14 beside 35)
     heights = np.zeros((12, 9))
     heights[5:] = math.tan(math.radians(degrees)) * (np.arange(5, 12)[:, None] - 4.5) * RES
-    slope = nk.local_slope(heights, REACH, STEP, RES)
-    assert np.allclose(slope[5:10, 2:7], math.radians(degrees), atol=1e-4)
-    assert (slope[4, 2:7] < math.radians(15.0)).all()
+    slope = slope_of(heights)
+    assert np.allclose(slope[7:10, 2:7], math.radians(degrees), atol=1e-4)  # ramp only
+    assert (slope[5:7, 2:7] <= math.radians(degrees) + 1e-4).all()
+    assert (slope[5, 2:7] > MAX_SLOPE).all() == (degrees > 15.0)
+    assert (slope[4, 2:7] < MAX_SLOPE).all()
     assert (slope[:3, 2:7] == 0.0).all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(degrees=st.floats(0.0, 40.0), direction=st.floats(0.0, 2.0 * math.pi),
+       seed=st.integers(0, 2**32 - 1))
+def test_a_plane_sampled_off_the_cells_centres_has_its_slope_where_its_hits_lie(
+        degrees, direction, seed):
+    # A turned ramp's lines cross its cells anywhere: the height there is the plane's at
+    # the hits, up to 1.3 cm off the centre's on a 15 deg ramp; at the hits, exact
+    rng = np.random.default_rng(seed)
+    offsets = rng.uniform(-0.5 * RES, 0.5 * RES, (9, 9, 2))
+    y, x = np.mgrid[0:9, 0:9] * RES
+    g = math.tan(math.radians(degrees))
+    heights = g * (math.cos(direction) * (x + offsets[..., 0])
+                   + math.sin(direction) * (y + offsets[..., 1]))
+    slope = slope_of(heights, 10.0, offsets)
+    assert math.isclose(slope[4, 4], math.radians(degrees), abs_tol=1e-4)
+
+
+def test_a_noisy_ramp_just_under_max_slope_is_not_steep_but_one_just_over_is():
+    # 1 mm of noise on each cell's height (a turned ramp's, at 5 cm cells, after several
+    # scans): the steepest of three fits everywhere overshot a 14 deg ramp by 1-2.6 deg;
+    # one plane, where it fits, stays within half a degree
+    rng = np.random.default_rng(7)
+    y, x = np.mgrid[0:40, 0:40] * RES
+    direction = math.radians(30.0)
+    for degrees, steep in ((14.0, False), (16.0, True)):
+        rise = math.tan(math.radians(degrees)) * (math.cos(direction) * x
+                                                  + math.sin(direction) * y)
+        slope = slope_of(rise + rng.normal(0.0, 0.001, rise.shape))[2:-2, 2:-2]
+        assert (slope > MAX_SLOPE).all() if steep else not (slope > MAX_SLOPE).any()
+        old = slope_of(rise + rng.normal(0.0, 0.001, rise.shape), noise=0.0)[2:-2, 2:-2]
+        assert np.nanmax(old) > np.nanmax(slope)  # the steepest of three overshoots
 
 
 def test_too_few_cells_have_no_slope():
     heights = np.full((5, 5), np.nan)
     heights[2, 2] = heights[2, 3] = 0.0
-    assert np.isnan(nk.local_slope(heights, REACH, STEP, RES)).all()
+    assert np.isnan(slope_of(heights)).all()
 
 
 def _row(*heights: float) -> np.ndarray:
@@ -132,3 +179,25 @@ def test_no_cell_of_a_ramp_within_max_slope_bridges_a_step(degrees, direction, b
     rise = math.tan(math.radians(degrees)) * (math.cos(direction) * x + math.sin(direction) * y)
     heights = (base + rise).astype(np.float32)
     assert not nk.bridged_steps(heights, STEP, REACH_OF_A_STEP).any()
+
+
+@settings(max_examples=40, deadline=None)
+@given(angle=st.floats(0.0, math.pi), seed=st.integers(0, 2**32 - 1))
+def test_one_laser_lines_hits_across_flat_floor_are_not_steep(angle, seed):
+    # The first scan's lines cross the far floor one at a time: the hits' mean positions
+    # in a window lie within a few mm of one line (range noise, the line's bend), and a
+    # plane through them would tilt with the noise
+    rng = np.random.default_rng(seed)
+    across = (-math.sin(angle), math.cos(angle))
+    heights = np.full((9, 9), np.nan)
+    offsets = np.zeros((9, 9, 2))
+    along = (math.cos(angle), math.sin(angle))
+    for t in np.linspace(-0.2, 0.2, 400):  # the line through the window's centre
+        x, y = 0.2 + t * along[0], 0.2 + t * along[1]
+        col, row = round(x / RES), round(y / RES)
+        if 0 <= col < 9 and 0 <= row < 9 and np.isnan(heights[row, col]):
+            heights[row, col] = rng.normal(0.0, 0.002)
+            off = rng.normal(0.0, 0.003)
+            offsets[row, col] = x + off * across[0] - col * RES, y + off * across[1] - row * RES
+    slope = slope_of(heights, offsets=offsets)
+    assert slope[4, 4] < math.radians(10.0)
