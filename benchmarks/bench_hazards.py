@@ -2,13 +2,14 @@
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
-        [--mixed N] [--step N] [--ramp N] [--people N] [--first SEED]
+        [--mixed N] [--step N] [--ramp N] [--people N] [--first SEED] [--pixel-sigma PX]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
 takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N` or `--people N`, on N
 random hazard rooms, mixed rooms, rooms with one step down just deeper than the robot's
 step, rooms with turned ramps near max_slope or rooms with people (`random_rooms`, seeds
-from `--first`, 1 by default): a method must hold on scenes it was not built on.
+from `--first`, 1 by default): a method must hold on scenes it was not built on; with
+`--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px).
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -142,11 +143,13 @@ def fuse(grid: HeightGrid, ideal: IdealScan) -> None:
 
 
 def mapped(scene: Scene, scans: int | None = None, seed: int = 0,
-           params: FloorConfig = PARAMS) -> Iterator[Step]:
-    """Map the scene scan by scan, segmenting its window after each."""
+           params: FloorConfig = PARAMS, pixel_sigma: float | None = None) -> Iterator[Step]:
+    """Map the scene scan by scan, segmenting its window after each; `pixel_sigma`: the
+    laser peak's noise (px), the scanner model's by default."""
     grid = HeightGrid(GridConfig(extent=50.0))
     bounds = scene_window(scene)
-    for index, ideal in enumerate(ideal_scans(scene, seed=seed, scans=scans)):
+    for index, ideal in enumerate(ideal_scans(scene, seed=seed, scans=scans,
+                                              pixel_sigma=pixel_sigma)):
         fuse(grid, ideal)
         layers = grid.layers(bounds)
         yield Step(index, ideal, layers, segment(layers, ROBOT, params))
@@ -205,16 +208,17 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
     return 2.0 * tp / max(int(predicted.sum()) + int(actual.sum()), 1)
 
 
-def hazard_run(scans: int | None = None, seed: int = 0,
-               scene: Scene | None = None) -> dict[str, float]:
+def hazard_run(scans: int | None = None, seed: int = 0, scene: Scene | None = None,
+               pixel_sigma: float | None = None) -> dict[str, float]:
     """The drop-off and ramp measures on a scene with hazards (the built-in `hazards`)
     after its last scan, the worst counts of free and of false drop-off cells, the worst
-    edge error and the least share of the edge within one cell over all scans."""
+    edge error and the least share of the edge within one cell over all scans (scans with
+    `mapped`'s `pixel_sigma`)."""
     scene = scene or builtin_scene("hazards")
     raster, fine = (truth_raster(scene, resolution, ROBOT.step_height, ROBOT.height,
                                  max_slope=PARAMS.max_slope) for resolution in (CELL, EDGE_TRUTH))
     worst, edge_worst, within_worst, false_worst = 0, 0.0, 1.0, 0
-    for step in mapped(scene, scans, seed):
+    for step in mapped(scene, scans, seed, pixel_sigma=pixel_sigma):
         truth = truth_classes(step.seg, raster)
         measures = drop_measures(step.seg, truth, fine)
         worst = max(worst, measures["drop_free"])
@@ -532,6 +536,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--people", type=int, metavar="N",
                         help="instead: the ghost and erosion measures on N rooms with "
                         "people (benchmarks.random_rooms), each and summed")
+    parser.add_argument("--pixel-sigma", type=float, metavar="PX",
+                        help="the rooms' laser peak noise (px; default the scanner model's "
+                        "0.1, the extraction leaves 0.33 on the real flat-board images)")
     parser.add_argument("--first", type=int, default=1, metavar="SEED",
                         help="the rooms' first seed (default 1): fresh seeds are rooms "
                         "no rule was tried on")
@@ -539,7 +546,8 @@ def main(argv: list[str] | None = None) -> int:
     scans = 8 if args.quick else None
     for family, draw in families.items():
         count = getattr(args, family) or 0
-        rooms = {f"{family}_room({seed})": hazard_run(scans, scene=draw(seed))
+        rooms = {f"{family}_room({seed})": hazard_run(scans, scene=draw(seed),
+                                                      pixel_sigma=args.pixel_sigma)
                  for seed in range(args.first, args.first + count)}
         if rooms:
             print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))},

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from benchmarks.bench_hazards import main
+from benchmarks.bench_hazards import main, mapped
 from benchmarks.random_rooms import (
     HAZARDS,
     MIXED,
@@ -87,6 +87,23 @@ def test_a_mixed_room_holds_its_hazards_inside_its_walls_beside_a_clear_path():
         for region in room.floor_regions:
             assert (region.corners > low + 0.05).all() and (region.corners < high - 0.05).all()
         assert_path_clear(room, seed)
+
+
+def test_the_rooms_are_scanned_with_the_laser_peak_noise_asked_for():
+    # --pixel-sigma: the floor's heights scatter as the peak's noise grows
+    room = step_room(1)
+
+    def floor_scatter(pixel_sigma: float | None) -> float:
+        step = list(mapped(room, 2, pixel_sigma=pixel_sigma))[-1]
+        raster = truth_raster(room, step.layers.resolution)
+        levels, nlev = step.layers.levels, step.layers.nlev
+        xs, ys = step.layers.cell_centers()
+        gx, gy = np.meshgrid(xs, ys)
+        flat = raster.class_at(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+        cells = (flat == RASTER_FLOOR) & (nlev == 1)
+        return float(np.std(0.5 * (levels[..., 0, 0] + levels[..., 0, 1])[cells]))
+
+    assert floor_scatter(1.0) > 3.0 * floor_scatter(None)
 
 
 def test_the_benchmark_measures_random_rooms_and_their_worst(capsys):
