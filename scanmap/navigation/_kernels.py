@@ -770,8 +770,9 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                         szz += dz * dz
                         at_hits = _with_cell(at_hits, (xx - x) * res + offsets[yy, xx, 0] - ox,
                                              (yy - y) * res + offsets[yy, xx, 1] - oy, dz, 1.0)
-            if _plane_rms(at_hits, szz, res) <= plane_noise:  # one surface
-                slope = _plane_slope(at_hits, res)
+            gx, gy = _gradient(at_hits, res)
+            if not np.isnan(gx) and _plane_rms(at_hits, szz, gx, gy) <= plane_noise:
+                slope = math.atan(math.hypot(gx, gy))  # one surface
             else:  # maybe a crease: the steepest
                 slope = _steepest_at_centres(heights, radius, max_step, res, y, x)
             if slope > -np.inf:  # a fit on either side or over both
@@ -847,12 +848,9 @@ def _gradient(s: tuple, res: float) -> tuple[float, float]:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _plane_rms(s: tuple, szz: float, res: float) -> float:
-    """RMS residual (m) of the plane `_gradient` fits to the cells summed in `s` (`szz`:
-    their squared heights); inf where it fits none."""
-    gx, gy = _gradient(s, res)
-    if np.isnan(gx):
-        return np.inf
+def _plane_rms(s: tuple, szz: float, gx: float, gy: float) -> float:
+    """RMS residual (m) of the cells summed in `s` (`szz`: their squared heights) about
+    their least-squares plane, of gradient (gx, gy) (`_gradient`)."""
     n, sx, sy, sz = s[0], s[1], s[2], s[3]
     cxz, cyz = s[7] - sx * sz / n, s[8] - sy * sz / n
     return math.sqrt(max(szz - sz * sz / n - gx * cxz - gy * cyz, 0.0) / n)
