@@ -81,13 +81,15 @@ def _region(kind: str, x: float, y: float, rng: np.random.Generator,
     else:  # a ramp rising along its x from the floor at its low edge
         degrees = rng.uniform(*(NEAR_MAX_SLOPE if near_max_slope else RAMPS)[kind])
         gradient = math.tan(math.radians(degrees))
-        region |= {"size": [1.0, 0.9], "gradient": [round(gradient, 4), 0.0],
-                   "height": round(0.5 * gradient + 2e-4, 4)}  # rounded up: never below 0
-        if near_max_slope:
+        region["size"] = [1.0, 0.9]
+        if near_max_slope:  # turned, rising along its own x
             yaw = round(float(rng.uniform(-0.8, 0.8)), 3)
             region |= {"yaw": yaw, "height": round(0.5 * gradient + 5e-4, 4),
                        "gradient": [round(gradient * math.cos(yaw), 5),
                                     round(gradient * math.sin(yaw), 5)]}
+        else:  # rounded up: never below 0
+            region |= {"gradient": [round(gradient, 4), 0.0],
+                       "height": round(0.5 * gradient + 2e-4, 4)}
     return region
 
 
