@@ -88,8 +88,9 @@ heights only and its neighbours at others; an object hidden at the heights only 
 neighbours saw is narrower than a cell and was never lit), and
 no height it has not seen is suspect: occupied (within two height bins) in a
 neighbouring cell, or possibly under an overhanging board (a table top seen only at its
-rim), and it is not floor on one or two hits beside a drop-off or a dip (at the real
-extraction's noise, 0.3 px, a rim's or far wall's hits land a cell inside a hole);
+rim), and it is not floor on one or two hits within two cells of a drop-off or a dip
+(at the real extraction's noise, 0.3 px, a rim's or far wall's hits land up to two
+cells inside a hole);
 otherwise it is UNKNOWN. Occupied means a level with log-odds of at least
 `min_logodds`: one below it (seen, then seen through more often since: where a person
 walked on) leaves its cell UNKNOWN, neither an obstacle nor free. The footprint cells,
@@ -591,11 +592,12 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
     state[drop & (state != OBSTACLE)] = DROP_OFF
     state[_pinholes(state, layers.nlev, round(params.max_pinhole / res)) & ~dim] = FREE
-    # Floor on one or two hits beside a drop-off or a dip (a hole's far wall seen only
-    # at its top): at the laser's noise a rim's or far wall's hits land a cell inside the
-    # hole, and so few are no floor to drive on there
+    # Floor on one or two hits within two cells of a drop-off or a dip (a hole's far
+    # wall seen only at its top): at the laser's noise a rim's or far wall's hits land up
+    # to two cells inside the hole (the cells between unknown), and so few are no floor
+    # to drive on there
     scant = (layers.counts[:, :, 0, gk.HITS] <= 2) & (layers.nlev > 0) & ~stood
-    state[scant & (state == FREE) & morphology.dilate((state == DROP_OFF) | dips)] = UNKNOWN
+    state[scant & (state == FREE) & morphology.dilate((state == DROP_OFF) | dips, 2)] = UNKNOWN
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
                         is_floor=((is_floor | stood | holes) & (state != OBSTACLE) & ~drop
