@@ -21,20 +21,21 @@ Insertion is one scan at a time, in three passes:
    level within `protect` of the ray: a person's foot merged with the floor into one
    level is cut down as later rays pass through its heights one part at a time, though
    the floor under it is hit in every scan. A level hit in `static_scans` scans or
-   more (a wall, furniture) is passed only by rays within `pass_radius` of its mean
-   hit: where a face cuts a cell, rays through the cell's free part would otherwise
-   wear it away. Nor is it (or a level hit in half as many scans, a sliver of the same
-   face) passed by a ray that runs along its face, within `graze_angle` of the face's
-   direction read from the mean hits of the neighbouring cells' static levels: seen
-   from nearly in its plane, a face's cells are crossed through their free part close
-   to the mean hit, which lies on the face (a cabinet's end face lost three cells so in
-   a room with people). Guards against eroding surfaces at grazing incidence: the last
-   `clear_margin` metres before the hit clear nothing; a level hit in this scan within
-   `protect` metres of the ray's heights is not cleared ("occupied wins", as in
-   OctoMap, but per height, so a level wrongly spanning a gap still loses the passes
-   through the gap); a level loses at most `max_misses` per scan. A level whose
-   log-odds fall to 0 (p = 0.5) is removed: the space is free, and a new hit there is
-   occupied at once.
+   more (a wall, furniture), or beside such a level at its heights in a neighbouring
+   cell (the face's end or rim, seen in fewer scans), is passed only by rays within
+   `pass_radius` of its mean hit: where a face cuts a cell, rays through the cell's free
+   part would otherwise wear it away. Nor is a static level (or one hit in half as many
+   scans, a sliver of the same face) passed by a ray that runs along its face, within
+   `graze_angle` of the face's direction read from the mean hits of the neighbouring
+   cells' static levels: seen from nearly in its plane, a face's cells are crossed
+   through their free part close to the mean hit, which lies on the face (a cabinet's
+   end face lost three cells so in a room with people). Guards against eroding surfaces
+   at grazing incidence: the last `clear_margin` metres before the hit clear nothing;
+   a level hit in this scan within `protect` metres of the ray's heights is not
+   cleared ("occupied wins", as in OctoMap, but per height, so a level wrongly spanning
+   a gap still loses the passes through the gap); a level loses at most `max_misses`
+   per scan. A level whose log-odds fall to 0 (p = 0.5) is removed: the space is free,
+   and a new hit there is occupied at once.
    Rays from one origin (one camera frame) converge there and share their last cells:
    the cell remembers the heights the current origin's rays marked (VKEY, VMASK), and a
    ray stops after `bundle_run` cells in a row that a sibling ray already updated with
@@ -488,14 +489,22 @@ def segment_distance(px: float, py: float, ax: float, ay: float, bx: float,
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _beside_static(lev_f, lev_n, li, path, fp, static_scans) -> bool:
-    """A level hit in `static_scans` scans or more (a wall, furniture) and a ray that
-    crossed its cell only beside it: farther than `pass_radius` from the level's mean hit.
-    Where a face cuts a cell, rays through the cell's free part must not clear the face;
-    a level seen briefly (a person) clears from any pass."""
-    return np.int64(lev_n[li, SCANS]) >= static_scans \
-        and segment_distance(lev_f[li, MX], lev_f[li, MY], path[0], path[1], path[2],
-                             path[3]) > fp[FP_PASS_RADIUS]
+def _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, path, fp, shift, levels,
+                   static_scans) -> bool:
+    """A level of a static surface and a ray that crossed its cell (ix, iy) only beside
+    it: farther than `pass_radius` from the level's mean hit. Static: the level was hit
+    in `static_scans` scans or more (a wall, furniture), or a neighbouring cell holds such
+    a level at its heights (the face's end or rim, seen in fewer scans: a cabinet's end
+    face seen only while the robot came towards it, its corner where a turned face cuts
+    the cell near its edge). Where a face cuts a cell, rays through the cell's free part
+    must not clear the face; a level seen briefly away from any static one (a person)
+    clears from any pass."""
+    if segment_distance(lev_f[li, MX], lev_f[li, MY], path[0], path[1], path[2],
+                        path[3]) <= fp[FP_PASS_RADIUS]:
+        return False
+    return np.int64(lev_n[li, SCANS]) >= static_scans or _beside_seen_in(
+        lev_f, lev_n, nlev, tile_index, ix, iy, lev_f[li, LO], lev_f[li, HI], fp[FP_MASK_DZ],
+        shift, levels, static_scans)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -561,17 +570,16 @@ def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp,
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def _beside_seen_longer(lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, tol, shift,
-                        levels) -> bool:
-    """Whether one of the 8 cells round cell (ix, iy) holds a level hit in two scans or
-    more that reaches the heights [lo, hi] (within `tol`): a level hit in one scan there
-    may be the rarely hit rim of a surface (a table top's edge, seen at a grazing angle),
-    not what a person left, and rays through the free part of its cell do not clear it
-    at once (see _pass_cell)."""
+def _beside_seen_in(lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, tol, shift, levels,
+                    scans) -> bool:
+    """Whether one of the 8 cells round cell (ix, iy) holds a level hit in `scans` scans or
+    more that reaches the heights [lo, hi] (within `tol`): the level of (ix, iy) at those
+    heights may be part of the same surface, seen in fewer scans there (a face's end or
+    rim, hit at a grazing angle), not what a person left (see _pass_cell)."""
     for n in range(8):
         joff = _cell_offset(tile_index, ix + _NEIGHBOURS[n, 0], iy + _NEIGHBOURS[n, 1], shift)
         for lj in range(joff * levels, joff * levels + (np.int64(nlev[joff]) if joff >= 0 else 0)):
-            if np.int64(lev_n[lj, SCANS]) >= 2 and lev_f[lj, LO] - tol <= hi \
+            if np.int64(lev_n[lj, SCANS]) >= scans and lev_f[lj, LO] - tol <= hi \
                     and lo <= lev_f[lj, HI] + tol:
                 return True
     return False
@@ -598,7 +606,7 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
     scans than in its neighbours, and the level is split by rays through the free part.
     A level hit in one scan only, not hit in this one, is removed outright by a ray that
     went on `see_through` beyond the cell (`through`), unless a neighbouring cell holds a
-    level at its heights hit in two scans or more (_beside_seen_longer).
+    level at its heights hit in two scans or more (_beside_seen_in).
     Returns the levels removed.
     """
     cleared = 0
@@ -614,7 +622,8 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
             continue
         _touch(lev_n, lev_flag, li, scan)
         hit_now = lev_flag[li] & HIT_FLAG
-        if not hit_now and _beside_static(lev_f, lev_n, li, path, fp, static_scans):
+        if not hit_now and _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, path,
+                                          fp, shift, levels, static_scans):
             continue
         if not hit_now and 2 * np.int64(lev_n[li, SCANS]) >= static_scans \
                 and _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path,
@@ -631,9 +640,9 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
             continue
         lev_n[li, PASSES] = min(lev_n[li, PASSES] + np.uint32(1), _U32_MAX)
         if not hit_now:
-            if through and lev_n[li, SCANS] <= 1 and not _beside_seen_longer(
+            if through and lev_n[li, SCANS] <= 1 and not _beside_seen_in(
                     lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, fp[FP_MASK_DZ], shift,
-                    levels):
+                    levels, 2):
                 _remove(lev_f, lev_n, lev_flag, nlev, off, k, levels)  # one look through
                 cleared += 1  # outweighs one scan's hits
             else:

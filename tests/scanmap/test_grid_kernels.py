@@ -316,6 +316,33 @@ def test_rays_beside_a_long_seen_face_leave_it(seen, y, kept):
     assert (len(level_at(grid, 2.025, 0.025)) == 1) == kept
 
 
+@pytest.mark.parametrize(("beside_wall", "y", "kept"), [
+    (True, 0.097, True),  # the end of a wall seen longer next door: rays beside it leave it
+    (True, 0.056, False),  # rays where its hits are clear it
+    (False, 0.097, False),  # nothing static beside it (a person): any ray clears it
+])
+def test_rays_beside_a_face_seen_briefly_next_to_a_wall_leave_it(beside_wall, y, kept):
+    """Issue 17 (people rooms 15 and 16: a cabinet's end or corner, hit in fewer scans
+    than its long face beside it, cleared by rays through its cells' free part, its cells
+    then FREE): a level hit in 3 scans in the cell [2.0, 2.05] x [0.05, 0.1] (its face at
+    x = 2.033, y 0.05-0.06), next to a face at its heights hit in `static_scans` scans in
+    the cell below, is passed only by rays within `pass_radius` of its mean hit, as the
+    wall's own cells are."""
+    grid = HeightGrid(CONFIG)
+    wall = np.array([[2.033, y, z] for y in np.arange(0.0, 0.011, 0.0025)
+                     for z in np.arange(0.6, 0.9, 0.02)])
+    end = wall + [0.0, 0.05, 0.0]
+    for stamp in range(CONFIG.static_scans):
+        hits = [wall] if beside_wall else []
+        hits += [end] if stamp < 3 else []
+        if hits:
+            points = np.vstack(hits)
+            grid.insert(points, points + [0.0, 0.0, 0.01], float(stamp))  # no clearing
+    assert len(level_at(grid, 2.025, 0.075)) == 1
+    passes(grid, y, 20)
+    assert (len(level_at(grid, 2.025, 0.075)) == 1) == kept
+
+
 @pytest.mark.parametrize(("seen", "y", "trimmed"), [
     (CONFIG.static_scans, 0.047, False),  # a wall: rays into its top beside the face
     (CONFIG.static_scans, 0.005, True),  # a wall's top where its hits are
