@@ -56,7 +56,7 @@ class CellLayers:
     height mask; updated: last update time (NaN where never updated). stood: (M, 2) x, y
     where the robot stood (each scan's path as `insert` was given it, else the middle of
     its ray origins) during the scans inserted since the grid was made, inside the window:
-    floor the robot stood on (not kept in map files). unlit: (ny, nx) bool, cells whose
+    floor the robot stood on. unlit: (ny, nx) bool, cells whose
     floor a laser line crossed without a return (`scanmap.grid.unlit`); none if not given.
     """
 
@@ -459,7 +459,8 @@ class HeightGrid:
             used = np.flatnonzero(self._coords[:, 0] >= 0)
             out = {"tile_coords": self._coords[used].copy(),
                    "scan_times": np.array(self._scan_times, np.float64),
-                   "stamp": np.array(self.stamp, np.float64)}
+                   "stamp": np.array(self.stamp, np.float64),
+                   "stood": np.array(self._stood, np.float64).reshape(-1, 2)}
             for name, pool in zip(POOL_NAMES, self._pools(), strict=True):
                 out[name] = pool[used]
             out["cells"] = out["cells"][..., :SAVED_CELL_FIELDS].copy()  # not the scratch
@@ -524,6 +525,12 @@ class HeightGrid:
             pool[:n, ..., :saved.shape[-1]] = saved
         grid._scan_times = times.tolist()
         grid.stamp = float(state["stamp"])
+        if "stood" in state:  # absent from maps written before 2026-12-03: none known
+            stood = exact_array(np.asarray(state["stood"]), f"{source}: stood", np.float64,
+                                MapError)
+            if stood.ndim != 2 or stood.shape[1] != 2:
+                raise MapError(f"{source}: stood must be (M, 2) x, y, got {stood.shape}")
+            grid._stood = list(map(tuple, stood.tolist()))
         if "window_origin" in state:
             grid._window_origin = tuple(map(float, state["window_origin"]))
         return grid

@@ -10,8 +10,10 @@ the thresholds of ROS 1's map_saver and of Nav2's since ros-navigation/navigatio
 (with the user's free_thresh 0.25 every unknown cell would read as free). Our reader
 applies the same rule, without exceptions.
 
-The full map keeps every layer of the grid (levels, counts, observed masks, times), its
-configuration, resolution and origin, and a format version. All writes are atomic.
+The full map keeps every layer of the grid (levels, counts, observed masks, times), where
+the robot stood (`stood`: floor it knows, which the segmentation reads; optional, absent
+from files written before 2026-12-03), its configuration, resolution and origin, and a
+format version. All writes are atomic.
 """
 
 from __future__ import annotations

@@ -97,13 +97,31 @@ def test_full_map_round_trip_keeps_every_layer(tmp_path, mapped_grid):
     saved = load_map(tmp_path / "map.npz")
     bounds = (-3.1, -3.1, 3.1, 3.1)
     before, after = mapped_grid.layers(bounds), saved.grid.layers(bounds)
-    for name in ("levels", "counts", "nlev", "seen", "updated"):
+    for name in ("levels", "counts", "nlev", "seen", "updated", "stood"):
         np.testing.assert_array_equal(getattr(before, name), getattr(after, name))
+    assert len(after.stood) == 3  # one place per scan: known floor, as before saving
     np.testing.assert_array_equal(saved.layers["state"], layers["state"])
     assert saved.origin == (-3.1, -3.1) and saved.grid.config == mapped_grid.config
     assert saved.grid.stamp == mapped_grid.stamp
     more = np.array([[1.0, 1.0, 0.3]])  # and mapping goes on in the loaded grid
     assert saved.grid.insert(more, np.zeros(3) + [0, 0, 1.0], 99.0).inserted == 1
+
+
+def test_a_map_written_before_it_kept_where_the_robot_stood_loads_without_it(
+        tmp_path, mapped_grid):
+    """`stood` is optional: older version-3 files load with no place known stood on;
+    one that is not (M, 2) finite x, y is refused, naming the field."""
+    path = tmp_path / "map.npz"
+    save_map(path, mapped_grid)
+    arrays = dict(np.load(path, allow_pickle=False))
+    np.savez(tmp_path / "old.npz", **{k: v for k, v in arrays.items() if k != "stood"})
+    old = load_map(tmp_path / "old.npz").grid
+    assert old.layers((-3.1, -3.1, 3.1, 3.1)).stood.shape == (0, 2)
+    np.testing.assert_array_equal(old.state()["lev_f"], arrays["lev_f"])
+    for bad in (arrays["stood"][:, :1], np.full((2, 2), np.nan)):
+        np.savez(tmp_path / "bad.npz", **{**arrays, "stood": bad})
+        with pytest.raises(MapError, match=r"bad\.npz: stood"):
+            load_map(tmp_path / "bad.npz")
 
 
 def test_a_version_1_map_loads_with_no_scans_counted(tmp_path, mapped_grid):

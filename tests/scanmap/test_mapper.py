@@ -207,6 +207,9 @@ def test_save_and_load_keep_everything(mapped, tmp_path):
         np.testing.assert_array_equal(loaded[name], value, err_msg=name)
     for a, b in zip(mapper.kept_points(), again.kept_points(), strict=True):
         np.testing.assert_array_equal(a, b)
+    for name in ("state", "floor_height"):  # where it stood too: the same floor and edges
+        np.testing.assert_array_equal(getattr(again.segment(), name),
+                                      getattr(mapper.segment(), name), err_msg=name)
     as_full_map = load_map(path)  # the file is also a map_io full map, with its layers
     assert as_full_map.layers["state"].shape == mapper.segment().shape
 
