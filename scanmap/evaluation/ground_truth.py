@@ -8,7 +8,10 @@
 * trajectory: ATE RMSE of the scan poses after SE(2) alignment (`trajectory.ate_rmse`).
 * map: obstacle cells against the truth raster, in the world frame (the map frame is
   placed by the true pose of the first scan: where the robot started). Precision: the
-  map's obstacle cells within one cell of a true obstacle; recall: true obstacle cells
+  map's obstacle cells within one cell of a true obstacle, among those on cells the
+  truth classes (floor, obstacle or drop-off: not outside, where no robot goes, behind a
+  wall, on a platform's top or up a too steep ramp, which the map rightly calls
+  obstacles too); recall: true obstacle cells
   with a map obstacle within one cell, among those the map observed (an obstacle or
   free there: unknown is no claim); coverage: the same over all true obstacle cells;
   free precision: the map's free cells that are truly floor (the safety figure).
@@ -37,6 +40,7 @@ from scanmap_driver.sim import (
     RASTER_DROP_OFF,
     RASTER_FLOOR,
     RASTER_OBSTACLE,
+    RASTER_OUTSIDE,
     ScanTruth,
     TruthRaster,
 )
@@ -131,7 +135,8 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
     near_truth_at = _raster_at_cells(near_truth, raster, seg, world_from_map, False)
     predicted = seg.state == floor.OBSTACLE
     free = seg.state == floor.FREE
-    precision = float(near_truth_at[predicted].mean()) if predicted.any() else float("nan")
+    scored = predicted & (truth_class != RASTER_OUTSIDE) & (truth_class >= 0)
+    precision = float(near_truth_at[scored].mean()) if scored.any() else float("nan")
 
     detected, observed = _found(raster, RASTER_OBSTACLE, predicted, free, seg, world_from_map)
     recall = float(detected[observed].mean()) if observed.any() else float("nan")

@@ -74,6 +74,30 @@ def hazards_raster():
     return truth_raster(builtin_scene("hazards"))
 
 
+def test_obstacles_where_no_robot_goes_are_not_false_but_those_on_floor_are(hazards_raster):
+    """The hazards scene's platform top and too steep ramp are outside the truth (no robot
+    gets there): a map calling them obstacles keeps its precision; calling as many floor
+    cells obstacles loses it in proportion."""
+    seg = segmentation_of(hazards_raster)
+    outside = hazards_raster.classes == truth.OUTSIDE
+    inside = morphology.dilate(hazards_raster.classes == truth.FLOOR, 3) & outside
+    assert inside.sum() > 100  # the platform's and the steep ramp's tops, the walls' backs
+    state = seg.state.copy()
+    state[inside] = OBSTACLE
+    errors = evaluation.map_errors(dataclasses.replace(seg, state=state), hazards_raster,
+                                   np.eye(4))
+    assert errors["obstacle_precision"] == 1.0
+    floor = (hazards_raster.classes == truth.FLOOR) & ~morphology.dilate(
+        hazards_raster.classes == truth.OBSTACLE, 2)
+    claimed = np.flatnonzero(floor)[:int(inside.sum())]
+    state = seg.state.copy()
+    state.flat[claimed] = OBSTACLE
+    obstacles = int((seg.state == OBSTACLE).sum())
+    errors = evaluation.map_errors(dataclasses.replace(seg, state=state), hazards_raster,
+                                   np.eye(4))
+    assert errors["obstacle_precision"] == pytest.approx(obstacles / (obstacles + len(claimed)))
+
+
 def test_a_perfect_map_finds_every_drop_off_and_places_its_edge_on_it(hazards_raster,
                                                                      office_raster):
     errors = evaluation.map_errors(segmentation_of(hazards_raster), hazards_raster, np.eye(4))
