@@ -497,11 +497,13 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         shadow &= ~nk.interpolated(known, (layers.nlev > 0) | drop | _beyond_spans(known, hole),
                                    floor_height, hole, robot.step_height, False, nk.NO_SAMPLES)
         # across the scanner's view, no farther from where the robot stood than the cells
-        # that show it (and a cell: beyond a hole's far wall the floor is lit, its unlit
-        # cells are gaps between the laser's lines), nearer only across the rim's shadow
+        # that show it (and half a cell, their far half: beyond a hole's far wall the
+        # floor is lit, its unlit cells are gaps between the laser's lines; seen aslant,
+        # a whole cell let it run two cells along the far wall), nearer only across the
+        # rim's shadow
         ranges = _ranges(layers)
         near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
-        spread = morphology.dilate_in_range(drop, shadow, ranges, near, ranges + 1.0,
+        spread = morphology.dilate_in_range(drop, shadow, ranges, near, ranges + 0.5,
                                             max(round(params.drop_reach / res), 1))
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there:
