@@ -47,7 +47,8 @@ drop-off), and from that shadow one cell on up to the rim but for the gaps betwe
 samples (below), so its edge is within a cell of the last floor seen (the cells showing
 the drop-off themselves are where it is: no cell on from them, nor into a cell beside one
 in a row or a column, as along a hole's side wall). It spreads across the
-scanner's view (between its lines) but not away from where the robot stood, beyond the
+scanner's view (between its lines: within half of `max_gap` and a cell of the line of
+sight through a cell showing it) but not away from where the robot stood, beyond the
 cells that show it (past a hole's far wall the floor is lit, its unlit cells are gaps
 between the lines), and towards it only across the rim's shadow (`rim_shadow`): rays
 that cross the floor's height at a hole's near rim pass below it only farther on.
@@ -184,7 +185,9 @@ class FloorConfig:
     16 deg ramp's first row leaves with the floor before it, noise-free.
     drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
     without observed floor, no farther from the nearest place the robot stood than they
-    (and a cell), nearer by at most rim_shadow times their range (and a cell): rays
+    (and half a cell), nearer by at most rim_shadow times their range (and a cell), and
+    within half of max_gap and a cell of the line of sight through one of them (from
+    the nearest place the robot stood, if at least blind_range off): rays
     reach step_height and a height bin or two below the floor (`below_floor`) about
     (step_height + 2 mask_dz) / camera height times the range past the rim, 0.1 for a
     camera 1 m up. max_hole: the largest patch without hits (m, each side of its
@@ -215,6 +218,10 @@ class FloorConfig:
     every neighbour is FREE that is taken as FREE: a pinhole between the laser's samples
     in floor seen free all round (a hole there shows its far wall as hits, which are not
     FREE). 0.15 m: three cells, the span `interpolated` fills between floor samples.
+    blind_range: the nearest floor (m) the scanner sees from where it stands (1.49 m for
+    the reference scanner, its camera 1 m up): a drop-off's spread keeps to the line of
+    sight from the nearest place the robot stood through a cell showing it only where
+    that place lies at least this far off (nearer, it was seen from elsewhere).
     """
 
     thickness: float = 0.06
@@ -242,6 +249,7 @@ class FloorConfig:
     floor_probe: float = 0.1
     min_logodds: float = 0.2
     max_pinhole: float = 0.15
+    blind_range: float = 1.5
 
 
 @dataclass(frozen=True)
@@ -500,11 +508,18 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # that show it (and half a cell, their far half: beyond a hole's far wall the
         # floor is lit, its unlit cells are gaps between the laser's lines; seen aslant,
         # a whole cell let it run two cells along the far wall), nearer only across the
-        # rim's shadow
-        ranges = _ranges(layers)
+        # rim's shadow, and sideways only into the gaps between the lines (half of
+        # max_gap and a cell from the line of sight through a cell showing it: along a
+        # far wall seen aslant it ran on past the wall's end, in rendered frames as far
+        # as 5 cells into the unlit floor beyond); a cell showing it nearer than
+        # blind_range to every place the robot stood was seen from farther off, and
+        # the nearest place gives no line of sight
+        ranges, nearest = _ranges(layers)
         near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
+        viewed_from = np.where(ranges >= params.blind_range / res, nearest, -1)
         spread = morphology.dilate_in_range(drop, shadow, ranges, near, ranges + 0.5,
-                                            max(round(params.drop_reach / res), 1))
+                                            max(round(params.drop_reach / res), 1),
+                                            viewed_from, 0.5 * params.max_gap / res + 1.0)
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there:
         # not a cell on from it, beside it in a row or a column, as at a hole's side wall)
@@ -655,13 +670,14 @@ def _beyond_spans(known: np.ndarray, size: int) -> np.ndarray:
     return ~morphology.max_filter(known, 2 * size + 5)
 
 
-def _ranges(layers: CellLayers) -> np.ndarray:
-    """Distance (cells) from each cell to the nearest place in the window the robot stood
-    (all 0 where it stood nowhere in it: no direction to tell)."""
+def _ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (cells) from each cell to the nearest place in the window the robot stood,
+    and that place's cell (flat index); all 0 and -1 where it stood nowhere in it: no
+    direction to tell."""
     cells = _stood_cells(layers)
     if not cells.any():
-        return np.zeros(layers.shape, np.float32)
-    return distance_transform(cells)[0]
+        return np.zeros(layers.shape, np.float32), np.full(layers.shape, -1, np.int64)
+    return distance_transform(cells)
 
 
 def _stood_cells(layers: CellLayers) -> np.ndarray:

@@ -52,26 +52,48 @@ def geodesic_dilate(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndar
 
 
 def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
-                    low: np.ndarray, high: np.ndarray, steps: int) -> np.ndarray:
+                    low: np.ndarray, high: np.ndarray, steps: int,
+                    viewed_from: np.ndarray | None = None,
+                    lateral: float = math.inf) -> np.ndarray:
     """`geodesic_dilate` of `seeds` through the cells of `within` whose value in `ranges`
     lies in the bounds (`low`, `high`) of the seed they came from (the widest, where two
     seeds reach a cell at the same depth): a drop-off's spread kept to the ranges from
-    the scanner that the cells showing it lie at."""
+    the scanner that the cells showing it lie at. With `viewed_from` (per cell, the flat
+    index of the cell it was seen from, -1 for none), also within `lateral` cells of the
+    line of sight through the seed they came from (the first to reach them): between the
+    scanner's lines, not along a far wall seen aslant."""
+    if viewed_from is None:
+        viewed_from = np.full(seeds.shape, -1, np.int64)
     return _breadth_first(np.ascontiguousarray(seeds, dtype=np.bool_),
                           np.ascontiguousarray(within, dtype=np.bool_), steps, ranges, low,
-                          high)
+                          high, np.ascontiguousarray(viewed_from, dtype=np.int64),
+                          float(lateral))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _off_sight(seed: int, viewed_from: int, y: int, x: int, nx: int) -> float:
+    """Distance (cells) of cell (y, x) from the line through `seed` and the cell it was
+    seen from (0 without one)."""
+    if viewed_from < 0 or viewed_from == seed:
+        return 0.0
+    sy, sx = seed // nx, seed % nx
+    py, px = viewed_from // nx, viewed_from % nx
+    dy, dx = sy - py, sx - px
+    return abs(dx * (y - py) - dy * (x - px)) / math.sqrt(dy * dy + dx * dx)
 
 
 @njit(cache=True, nogil=True)
 def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np.ndarray,
-                   low: np.ndarray, high: np.ndarray) -> np.ndarray:
+                   low: np.ndarray, high: np.ndarray, viewed_from: np.ndarray,
+                   lateral: float) -> np.ndarray:
     """`dilate_in_range`: one pass from a queue of the seeds, each cell carrying the bounds
-    of the seed it came from."""
+    and the sight line of the seed it came from."""
     ny, nx = seeds.shape
     out = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
     depth = np.zeros(ny * nx, np.int32)
     lows, highs = np.empty(ny * nx, np.float32), np.empty(ny * nx, np.float32)
+    source = np.empty(ny * nx, np.int64)  # the seed a queued cell came from
     tail = 0
     for y in range(ny):
         for x in range(nx):
@@ -80,6 +102,7 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
                 queue[tail] = cell
                 tail += 1
                 lows[cell], highs[cell] = low[y, x], high[y, x]
+                source[cell] = cell
     head = 0
     while head < tail:
         cell = queue[head]
@@ -88,10 +111,13 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
         if d >= steps:
             continue
         y, x = cell // nx, cell % nx
-        lo, hi = lows[cell], highs[cell]
+        lo, hi, seed = lows[cell], highs[cell], source[cell]
+        sight = viewed_from.flat[seed]
         for yy in range(max(y - 1, 0), min(y + 2, ny)):
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
                 if not within[yy, xx] or not lo <= ranges[yy, xx] <= hi:
+                    continue
+                if _off_sight(seed, sight, yy, xx, nx) > lateral:
                     continue
                 n = yy * nx + xx
                 if not out[yy, xx]:
@@ -99,7 +125,7 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
                     depth[n] = d + 1
                     queue[tail] = n
                     tail += 1
-                    lows[n], highs[n] = lo, hi
+                    lows[n], highs[n], source[n] = lo, hi, seed
                 elif depth[n] == d + 1 and not seeds[yy, xx]:  # not popped yet
                     lows[n], highs[n] = min(lows[n], lo), max(highs[n], hi)
     return out

@@ -70,6 +70,30 @@ def test_it_matches_the_plain_search(data, steps):
                           spread_reference(seeds, within, ranges, low, high, steps))
 
 
+@settings(max_examples=80, deadline=None)
+@given(data=st.data(), steps=st.integers(1, 10), lateral=st.floats(0.0, 5.0))
+def test_from_one_seed_it_keeps_to_the_seeds_line_of_sight(data, steps, lateral):
+    """One seed seen from one cell: the plain search through the cells of `within` no
+    farther than `lateral` from the line through the two (closed form: the cross product
+    over the line's length)."""
+    ny, nx = data.draw(shapes)
+    within = data.draw(arrays(np.bool_, (ny, nx)))
+    ranges = data.draw(arrays(np.float32, (ny, nx), elements=st.integers(0, 6)))
+    sy, sx = data.draw(st.integers(0, ny - 1)), data.draw(st.integers(0, nx - 1))
+    py, px = data.draw(st.integers(0, ny - 1)), data.draw(st.integers(0, nx - 1))
+    seeds = np.zeros((ny, nx), bool)
+    seeds[sy, sx] = True
+    low, high = ranges - 2.0, ranges + 2.0
+    y, x = np.mgrid[:ny, :nx]
+    length = np.sqrt(float((sy - py) ** 2 + (sx - px) ** 2))
+    off = np.abs((sx - px) * (y - py) - (sy - py) * (x - px)) / length if length else 0 * y
+    viewed_from = np.full((ny, nx), py * nx + px, np.int64)
+    assert np.array_equal(
+        morphology.dilate_in_range(seeds, within, ranges, low, high, steps, viewed_from,
+                                   lateral),
+        spread_reference(seeds, within & (off <= lateral), ranges, low, high, steps))
+
+
 def test_the_floor_beyond_a_hole_seen_from_one_side_is_never_a_drop_off():
     # The first scan of `hazards`, from 1.4 m before the stairwell's near corner: the
     # floor behind the hole is lit along the laser's lines only, and the gaps between
