@@ -2,18 +2,20 @@
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
-        [--mixed N] [--step N] [--ramp N] [--people N] [--first SEED] [--pixel-sigma PX]
+        [--mixed N] [--step N] [--ramp N] [--people N] [--rendered N] [--first SEED]
+        [--pixel-sigma PX]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
 takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N` or `--people N`, on N
 random hazard rooms, mixed rooms, rooms with one step down just deeper than the robot's
 step, rooms with turned ramps near max_slope or rooms with people (`random_rooms`, seeds
 from `--first`, 1 by default): a method must hold on scenes it was not built on; with
-`--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px).
+`--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px);
+with `--rendered N`, N random hazard rooms through the whole pipeline (below).
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
-slope). Rows:
+slope), but for the whole pipeline's row. Rows:
 
 * drop-off cells free: true drop-off cells reported FREE or traversable. Strict: all of
   them; the gate: those more than one cell inside the drop-off (a cell across the edge
@@ -59,6 +61,12 @@ slope). Rows:
 * rooms with people: the ghost and erosion measures on PEOPLE_ROOMS rooms drawn afresh
   (`random_rooms.people_room`: cabinets turned against the walls, people walking past
   and standing), summed over them, and the rooms where a wall or cabinet eroded.
+* through the whole pipeline: `hazards` and RENDERED_ROOMS random rooms with their
+  webcam frames rendered (`scanmap simulate`: the stripe's blur, noise and the encoder
+  disk) and mapped by `scanmap map` (extraction, decoding, registration), the map placed
+  in the world by the first true pose: after the last scan, drop-off cells free more
+  than a cell inside, the edge error and false drop-offs as above, and the report's
+  obstacle F1; the time is the command's mapping loop per scan (wall).
 * time per scan: fusing one scan (about 29k points, 5 cm cells: the rays in the map and
   the grid's insertion) and segmenting the 8 m x 8 m window around the robot (median CPU
   time of the thread, so what else shares the machine does not count).
@@ -67,6 +75,7 @@ slope). Rows:
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -75,10 +84,12 @@ import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
 from benchmarks.random_rooms import mixed_room, people_room, ramp_room, random_room, step_room
-from scanmap.evaluation.ground_truth import drop_off_errors
+from scanmap.evaluation.ground_truth import drop_off_errors, map_to_world
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
 from scanmap.grid.unlit import unlit_floor
+from scanmap.io.trajectory import read_tum
+from scanmap.mapping.mapper import Mapper
 from scanmap.navigation.floor import (
     DROP_OFF,
     FREE,
@@ -88,6 +99,7 @@ from scanmap.navigation.floor import (
     Segmentation,
     segment,
 )
+from scanmap.pipelines.offline import map_to_folder
 from scanmap_driver.scanner_model import reference_scanner
 from scanmap_driver.sim.ideal import IdealScan, ideal_scans
 from scanmap_driver.sim.raster import DROP_OFF as TRUE_DROP_OFF
@@ -95,6 +107,7 @@ from scanmap_driver.sim.raster import FLOOR as TRUE_FLOOR
 from scanmap_driver.sim.raster import OBSTACLE as TRUE_OBSTACLE
 from scanmap_driver.sim.raster import TruthRaster, truth_raster
 from scanmap_driver.sim.scene import Scene, builtin_scene, resolve_scene
+from scanmap_driver.sim.simulate import simulate_recording
 
 ROBOT = RobotShape()
 PARAMS = FloorConfig()
@@ -109,6 +122,7 @@ DEEP_CUT = 0.01  # m: eroded wall cells an object reaches deeper into are counte
 PLACEMENTS = 8  # placements of the hazards scene on the cells (`placed_run`)
 RANDOM_ROOMS = 12  # random hazard rooms measured (`random_run`)
 PEOPLE_ROOMS = 6  # rooms with people measured (`people_rooms_run`)
+RENDERED_ROOMS = 3  # random rooms rendered and mapped by the whole pipeline (`rendered_rooms`)
 CELL = GridConfig().resolution  # m
 EDGE_TRUTH = 0.01  # m, cells of the truth raster the drop-off edge is measured on
 
@@ -228,6 +242,49 @@ def hazard_run(scans: int | None = None, seed: int = 0, scene: Scene | None = No
     return {**measures, "drop_free_any_scan": worst, "edge_error_any_scan": edge_worst,
             "edge_within_one_any_scan": within_worst, "drop_false_any_scan": false_worst,
             "ramp_f1": ramp_f1(step.seg, truth, step.hits, scene)}
+
+
+def rendered_run(scene: Scene | None = None, scans: int | None = None,
+                 seed: int = 0) -> dict[str, float]:
+    """The drop-off measures of `hazard_run` after the last scan, through the whole
+    pipeline: the scene's webcam frames rendered (`simulate_recording`), mapped by
+    `scanmap map` (`map_to_folder`: extraction, encoder decoding, registration; the map
+    placed in the world by the first true pose), and the report's obstacle F1 and ATE."""
+    scene = scene or builtin_scene("hazards")
+    fine = truth_raster(scene, EDGE_TRUTH, ROBOT.step_height, ROBOT.height,
+                        max_slope=PARAMS.max_slope)
+    with tempfile.TemporaryDirectory(prefix="scanmap-rendered-") as scratch:
+        recording = simulate_recording(scene, f"{scratch}/rec", reference_scanner(),
+                                       seed=seed, scans=scans, workers=2)
+        report = map_to_folder(recording, f"{scratch}/map", workers=2)
+        mapper = Mapper.load(f"{scratch}/map/map.npz", offline=True)
+        truth = read_tum(recording / "ground_truth" / "trajectory.txt").poses
+    poses = mapper.trajectory().poses
+    world_from_map = map_to_world(poses, truth[np.array(mapper.scan_indices)])
+    errors = drop_off_errors(mapper.segment(), fine, world_from_map)
+    return {"scans": len(poses), "drop_free_strict": errors["free_cells_on_drop_offs"],
+            "drop_free": errors["free_cells_inside_drop_offs"],
+            "drop_recall": errors["drop_off_recall"],
+            "edge_error_cells": errors["drop_off_edge_error_cells"],
+            "edge_within_one": errors["drop_off_edge_within_one"],
+            "drop_false": errors["false_drop_off_cells"],
+            "obstacle_f1": report["errors"]["map"]["obstacle_f1"],
+            "ate_m": report["errors"]["trajectory_m"]["ate_rmse"],
+            "seconds_per_scan": report["mapping"]["seconds_per_scan"]}
+
+
+def rendered_rooms(count: int, first: int = 1, scans: int | None = None
+                   ) -> dict[str, dict[str, float]]:
+    """`rendered_run` on `count` random hazard rooms (seeds `first` on), by room, and the
+    worst over them."""
+    rooms = {f"random_room({seed})": rendered_run(random_room(seed), scans)
+             for seed in range(first, first + count)}
+    runs = list(rooms.values())
+    worst = {"rooms": len(runs), **{key: max((r[key] for r in runs), default=0) for key in (
+        "drop_free", "drop_free_strict", "edge_error_cells", "drop_false")},
+        **{key: min((r[key] for r in runs), default=math.nan) for key in (
+            "drop_recall", "edge_within_one", "obstacle_f1")}}
+    return rooms | {"worst": worst}
 
 
 def near(step: Step) -> np.ndarray:
@@ -446,6 +503,8 @@ def measure(quick: bool) -> dict[str, dict[str, float]]:
             "random": random_run(3 if quick else RANDOM_ROOMS, 8 if quick else None),
             "people": people_run(24 if quick else None),
             "people_rooms": people_rooms_run(1 if quick else PEOPLE_ROOMS, 24 if quick else None),
+            "rendered": rendered_run(scans=6 if quick else None),
+            "rendered_rooms": rendered_rooms(0 if quick else RENDERED_ROOMS)["worst"],
             "timing": time_per_scan(4 if quick else 8)}
 
 
@@ -467,6 +526,14 @@ def run(quick: bool = False) -> list[dict]:
     rooms = m["random"]
     scenes = (h, placed, rooms)
     per_scan = 1e-3 * timing["per_scan_ms"]
+    rendered, crowd_rendered = m["rendered"], m["rendered_rooms"]
+    both = [rendered] + ([crowd_rendered] if crowd_rendered["rooms"] else [])
+    rendered_rooms_text = (f" and {crowd_rendered['rooms']} random rooms"
+                           if crowd_rendered["rooms"] else "")
+    edge_rendered = max(r["edge_error_cells"] for r in both)
+    within_rendered = min(r["edge_within_one"] for r in both)
+    false_rendered = max(r["drop_false"] for r in both)
+    f1_rendered = min(r["obstacle_f1"] for r in both)
     settings = "ideal scans at true poses, 5 cm cells, default robot"
     return [
         {"stage": "hazards", "method": "drop-off cells free or traversable (gate)",
@@ -499,6 +566,16 @@ def run(quick: bool = False) -> list[dict]:
          f"1-{rooms['rooms']}), {settings}; worst over them",
          "median_s": None, "error": rooms["drop_free_any_scan"],
          "error_unit": "cells after any scan (goal 0)", **rooms, "peers": {}},
+        {"stage": "hazards", "method": "drop-off cells free through the whole pipeline",
+         "settings": f"built-in hazards scene{rendered_rooms_text}, webcam frames rendered "
+         "and mapped by scanmap map (extraction, decoding, registration), 5 cm cells, "
+         "default robot; worst over them",
+         "median_s": rendered["seconds_per_scan"],
+         "error": max(rendered["drop_free"], crowd_rendered["drop_free"]),
+         "error_unit": "cells more than a cell inside a drop-off after the last scan (goal "
+         f"0); edge error {edge_rendered:.2f} cells (goal 1), least share within a cell "
+         f"{within_rendered:.3f}; false drop-off cells {false_rendered}; least obstacle F1 "
+         f"{f1_rendered:.3f}", **rendered, "peers": {}},
         {"stage": "hazards", "method": "ghost cells three scans after a person left",
          "settings": f"built-in people scene, {settings}", "median_s": None,
          "error": people["ghost_cells"], "error_unit": f"cells of {people['left_cells']} "
@@ -544,6 +621,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.add_argument(f"--{family}", type=int, metavar="N",
                             help=f"instead: the drop-off and ramp measures on N {family} "
                             "rooms (benchmarks.random_rooms), each and the worst")
+    parser.add_argument("--rendered", type=int, metavar="N",
+                        help="instead: the drop-off measures through the whole pipeline "
+                        "(frames rendered, scanmap map) on N random hazard rooms")
     parser.add_argument("--people", type=int, metavar="N",
                         help="instead: the ghost and erosion measures on N rooms with "
                         "people (benchmarks.random_rooms), each and summed")
@@ -563,10 +643,13 @@ def main(argv: list[str] | None = None) -> int:
         if rooms:
             print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))},
                              indent=1))
+    if args.rendered:
+        print(json.dumps(rendered_rooms(args.rendered, args.first, scans), indent=1))
     rooms = people_rooms(args.people or 0, 24 if args.quick else None, args.first)
     if rooms:
         print(json.dumps(rooms | {"sum": people_summary(list(rooms.values()))}, indent=1))
-    if not (args.scene or args.random or args.mixed or args.step or args.ramp or args.people):
+    if not (args.scene or args.random or args.mixed or args.step or args.ramp or args.people
+            or args.rendered):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))
