@@ -22,7 +22,7 @@ slope), but for the whole pipeline's row. Rows:
   holds floor hits on its rim half, and the edge is placed within one cell).
 * drop-off edge error: for every DROP_OFF cell next to a FREE cell (the edge a robot
   drives up to), the distance (cells) from its centre to the nearest true drop-off, on
-  a truth raster of EDGE_TRUTH cells (the map's cells' own raster places the true edge
+  a truth raster of EDGE_RASTER cells (the map's cells' own raster places the true edge
   only to within half a cell: a cell diagonal to a drop-off cell measured 1.41 where
   the drop-off's corner lies 0.85 cells from its centre); the maximum and the share
   within one cell.
@@ -84,12 +84,10 @@ import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
 from benchmarks.random_rooms import mixed_room, people_room, ramp_room, random_room, step_room
-from scanmap.evaluation.ground_truth import drop_off_errors, map_to_world
+from scanmap.evaluation.ground_truth import EDGE_RASTER, drop_off_errors
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
 from scanmap.grid.unlit import unlit_floor
-from scanmap.io.trajectory import read_tum
-from scanmap.mapping.mapper import Mapper
 from scanmap.navigation.floor import (
     DROP_OFF,
     FREE,
@@ -124,7 +122,6 @@ RANDOM_ROOMS = 12  # random hazard rooms measured (`random_run`)
 PEOPLE_ROOMS = 6  # rooms with people measured (`people_rooms_run`)
 RENDERED_ROOMS = 3  # random rooms rendered and mapped by the whole pipeline (`rendered_rooms`)
 CELL = GridConfig().resolution  # m
-EDGE_TRUTH = 0.01  # m, cells of the truth raster the drop-off edge is measured on
 
 
 @dataclass(frozen=True)
@@ -230,7 +227,7 @@ def hazard_run(scans: int | None = None, seed: int = 0, scene: Scene | None = No
     `mapped`'s `pixel_sigma`)."""
     scene = scene or builtin_scene("hazards")
     raster, fine = (truth_raster(scene, resolution, ROBOT.step_height, ROBOT.height,
-                                 max_slope=PARAMS.max_slope) for resolution in (CELL, EDGE_TRUTH))
+                                 max_slope=PARAMS.max_slope) for resolution in (CELL, EDGE_RASTER))
     worst, edge_worst, within_worst, false_worst = 0, 0.0, 1.0, 0
     for step in mapped(scene, scans, seed, pixel_sigma=pixel_sigma):
         truth = truth_classes(step.seg, raster)
@@ -247,28 +244,24 @@ def hazard_run(scans: int | None = None, seed: int = 0, scene: Scene | None = No
 def rendered_run(scene: Scene | None = None, scans: int | None = None,
                  seed: int = 0) -> dict[str, float]:
     """The drop-off measures of `hazard_run` after the last scan, through the whole
-    pipeline: the scene's webcam frames rendered (`simulate_recording`), mapped by
-    `scanmap map` (`map_to_folder`: extraction, encoder decoding, registration; the map
-    placed in the world by the first true pose), and the report's obstacle F1 and ATE."""
+    pipeline: the scene's webcam frames rendered (`simulate_recording`) and mapped by
+    `scanmap map` (`map_to_folder`: extraction, encoder decoding, registration), as its
+    report gives them against the recording's truth (the map placed by the first true
+    pose, the edge on a 1 cm raster), with its obstacle F1 and ATE."""
     scene = scene or builtin_scene("hazards")
-    fine = truth_raster(scene, EDGE_TRUTH, ROBOT.step_height, ROBOT.height,
-                        max_slope=PARAMS.max_slope)
     with tempfile.TemporaryDirectory(prefix="scanmap-rendered-") as scratch:
         recording = simulate_recording(scene, f"{scratch}/rec", reference_scanner(),
                                        seed=seed, scans=scans, workers=2)
         report = map_to_folder(recording, f"{scratch}/map", workers=2)
-        mapper = Mapper.load(f"{scratch}/map/map.npz", offline=True)
-        truth = read_tum(recording / "ground_truth" / "trajectory.txt").poses
-    poses = mapper.trajectory().poses
-    world_from_map = map_to_world(poses, truth[np.array(mapper.scan_indices)])
-    errors = drop_off_errors(mapper.segment(), fine, world_from_map)
-    return {"scans": len(poses), "drop_free_strict": errors["free_cells_on_drop_offs"],
+    errors = report["errors"]["map"]
+    return {"scans": report["input"]["scans"],
+            "drop_free_strict": errors["free_cells_on_drop_offs"],
             "drop_free": errors["free_cells_inside_drop_offs"],
             "drop_recall": errors["drop_off_recall"],
             "edge_error_cells": errors["drop_off_edge_error_cells"],
             "edge_within_one": errors["drop_off_edge_within_one"],
             "drop_false": errors["false_drop_off_cells"],
-            "obstacle_f1": report["errors"]["map"]["obstacle_f1"],
+            "obstacle_f1": errors["obstacle_f1"],
             "ate_m": report["errors"]["trajectory_m"]["ate_rmse"],
             "seconds_per_scan": report["mapping"]["seconds_per_scan"]}
 

@@ -22,8 +22,10 @@
   observed (anything but unknown); the edge error: from each map DROP_OFF cell beside a
   FREE one (8 neighbours: the edge a robot drives up to) to the nearest true drop-off
   cell, in map cells, its largest value and the share within one cell (issue 17: the
-  edge within one cell of the truth); false drop-offs: the map's DROP_OFF cells on true
-  floor more than a cell (1.5 cells, diagonals included) from any true drop-off.
+  edge within one cell of the truth; on a raster of EDGE_RASTER cells drawn from the
+  scene where it is at hand, `scene_drop_off_errors`); false drop-offs: the map's
+  DROP_OFF cells on true floor more than a cell (1.5 cells, diagonals included) from any
+  true drop-off.
 """
 
 from __future__ import annotations
@@ -42,7 +44,9 @@ from scanmap_driver.sim import (
     RASTER_OBSTACLE,
     RASTER_OUTSIDE,
     ScanTruth,
+    Scene,
     TruthRaster,
+    truth_raster,
 )
 from scanmap_driver.transforms import invert_pose, transform_points, wrap_angle
 from scanmap_driver.triangulation import project_head_points
@@ -62,6 +66,7 @@ def statistics(values: np.ndarray) -> dict[str, float]:
 
 
 RANGE_TRUTH_FIELDS = ("frame", "u", "base", "primary")  # what `range_errors` reads
+EDGE_RASTER = 0.01  # m: cells of the truth raster a drop-off's edge is measured on
 
 
 def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.ndarray, int]:
@@ -147,6 +152,16 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
             else float("nan"),
             "free_cells_on_obstacles": int((truth_class[free] == RASTER_OBSTACLE).sum()),
             "band": list(raster.band)} | drop_off_errors(seg, raster, world_from_map)
+
+
+def scene_drop_off_errors(seg: Segmentation, scene: Scene, raster: TruthRaster,
+                          world_from_map: np.ndarray) -> dict[str, float]:
+    """`drop_off_errors` on a truth raster of EDGE_RASTER cells drawn from the scene, for
+    the band and slope of `raster` (a recording's): on the map's own 5 cm cells the true
+    edge is placed only to within half a cell (a cell diagonal to a drop-off cell measures
+    1.41 where the drop-off's corner lies 0.85 cells from its centre)."""
+    fine = truth_raster(scene, EDGE_RASTER, *raster.band, max_slope=raster.max_slope)
+    return drop_off_errors(seg, fine, world_from_map)
 
 
 def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray

@@ -47,7 +47,7 @@ from scanmap.stage_clock import StageClock
 from scanmap_driver.files import write_json
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel
-from scanmap_driver.sim import ScanTruth, TruthRaster, truth_path
+from scanmap_driver.sim import ScanTruth, TruthRaster, load_scene, truth_path
 
 REPORT_FORMAT = "scanmap.map_report/1"
 OBSTACLE_THRESH = 0.5  # occupancy at which a saved map cell is occupied: every obstacle
@@ -280,6 +280,10 @@ def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
     raster = TruthRaster.load(folder / "raster.npz")
     world_from_map = evaluation.map_to_world(estimate[usable], reference[indices[usable]])
     errors["map"] = evaluation.map_errors(seg, raster, world_from_map)
+    scene = folder / "scene.json"
+    if "drop_off_edge_cells" in errors["map"] and scene.is_file():  # the simulated scene
+        errors["map"] |= evaluation.scene_drop_off_errors(seg, load_scene(scene), raster,
+                                                          world_from_map)
     return errors
 
 

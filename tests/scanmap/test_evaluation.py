@@ -135,6 +135,22 @@ def test_a_drop_off_reported_a_cell_wider_has_its_edge_a_cell_out(hazards_raster
     assert errors["false_drop_off_cells"] == 0  # within a cell is no false claim
 
 
+def test_on_the_scenes_fine_raster_a_ring_a_cell_wider_lies_half_a_cell_out(hazards_raster):
+    """The same ring measured on a 1 cm raster drawn from the scene: its cells' centres lie
+    half a cell beyond a straight rim and sqrt(2)/2 beyond a corner (plus half a 1 cm
+    cell), not the 1 and sqrt(2) of the map's own cells' raster."""
+    seg = segmentation_of(hazards_raster)
+    state = seg.state.copy()
+    state[morphology.dilate(seg.state == DROP_OFF) & (seg.state == FREE)] = DROP_OFF
+    errors = evaluation.scene_drop_off_errors(dataclasses.replace(seg, state=state),
+                                              builtin_scene("hazards"), hazards_raster,
+                                              np.eye(4))
+    half = 0.5 + 0.5 * evaluation.EDGE_RASTER / hazards_raster.resolution
+    assert errors["drop_off_edge_error_cells"] == pytest.approx(np.hypot(half, half), abs=0.01)
+    assert errors["drop_off_edge_within_one"] == 1.0
+    assert errors["free_cells_on_drop_offs"] == 0 and errors["false_drop_off_cells"] == 0
+
+
 def test_a_drop_off_reported_two_cells_wider_claims_its_outer_ring_falsely(hazards_raster):
     seg = segmentation_of(hazards_raster)
     drop = seg.state == DROP_OFF
