@@ -10,9 +10,13 @@ lines: no ray was aimed into those.
 
 A line is counted only inside a run of MIN_RUN or more lines without a return whose two
 neighbouring lines returned the floor (within FLOOR_TOLERANCE of z = 0) MIN_SPAN or more
-apart, where its frame's other lines returned the floor at the run's ranges (LIT_SHARE
-of them, within LIT_REACH) and so did the whole scan's (per RANGE_BIN): the floor
-beyond and around shows the stripe was bright enough there. A stripe that fades with
+apart, where its frame's other lines returned the floor at the run's ranges and up to
+LIT_REACH nearer (LIT_SHARE of them, between the frame's first and last floor return:
+past them the laser's fan ends, on image lines 560-602 of every rendered frame) and so
+did the whole scan's (per RANGE_BIN): the floor beyond (the run's far neighbour) and
+around shows the stripe was bright enough there. Lines farther out are not judged: the
+stripe fades with range, and on the rendered frames their gaps had kept a black-lined
+hole 1.6-2 m off from ever counting (mixed_room(2): 21 cells FREE inside it). A stripe that fades with
 range (floor far off, lit at grazing incidence) drops out here and there all along the
 line: the rendered corridor has 672 such runs in 20 scans from 1.8 m out, and in the
 rendered corridor and `hazards` room the floor returns on 96-98 % of the lines out to
@@ -184,12 +188,17 @@ def unlit_lines(returned: np.ndarray, floor: np.ndarray, crossing: np.ndarray,
                 reach: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """(F, W) bool: per frame, the measurable image lines (ok) without a return inside a
     run of such lines (see the module): MIN_RUN lines or more, whose neighbours on both
-    sides returned the floor MIN_SPAN or more apart, on a frame whose other lines within
-    LIT_REACH of the run's ranges returned the floor at least LIT_SHARE of the time.
+    sides returned the floor MIN_SPAN or more apart, on a frame whose other lines at the
+    run's ranges and up to LIT_REACH nearer, between its first and last floor return,
+    returned the floor at least LIT_SHARE of the time.
     returned, floor, ok: (F, W) bool per image line; crossing (F, W, 3), reach (F, W)
     from `_floor_crossings`."""
     out = np.zeros(returned.shape, np.bool_)
     for f in range(returned.shape[0]):
+        first_lit, last_lit = returned.shape[1], -1
+        for u in range(returned.shape[1]):
+            if returned[f, u] and floor[f, u]:
+                first_lit, last_lit = min(first_lit, u), u
         last = -1
         for u in range(returned.shape[1]):
             if not returned[f, u]:
@@ -202,9 +211,9 @@ def unlit_lines(returned: np.ndarray, floor: np.ndarray, crossing: np.ndarray,
                         crossing[f, u, 1] - crossing[f, a, 1]) < MIN_SPAN:
                 continue
             near = min(reach[f, a], reach[f, u]) - LIT_REACH
-            far = max(reach[f, a], reach[f, u]) + LIT_REACH
+            far = max(reach[f, a], reach[f, u])
             lit = unlit = 0
-            for v in range(returned.shape[1]):
+            for v in range(first_lit, last_lit + 1):
                 if (a < v < u) or not ok[f, v] or not near <= reach[f, v] <= far:
                     continue
                 if not returned[f, v]:
