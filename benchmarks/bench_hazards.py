@@ -11,7 +11,7 @@ random hazard rooms, mixed rooms, rooms with one step down just deeper than the 
 step, rooms with turned ramps near max_slope or rooms with people (`random_rooms`, seeds
 from `--first`, 1 by default): a method must hold on scenes it was not built on; with
 `--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px);
-with `--rendered N`, N random hazard rooms through the whole pipeline (below).
+with `--rendered N`, N random and N mixed rooms through the whole pipeline (below).
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -61,7 +61,8 @@ slope), but for the whole pipeline's row. Rows:
 * rooms with people: the ghost and erosion measures on PEOPLE_ROOMS rooms drawn afresh
   (`random_rooms.people_room`: cabinets turned against the walls, people walking past
   and standing), summed over them, and the rooms where a wall or cabinet eroded.
-* through the whole pipeline: `hazards` and RENDERED_ROOMS random rooms with their
+* through the whole pipeline: `hazards`, RENDERED_ROOMS random rooms and as many mixed
+  rooms with their
   webcam frames rendered (`scanmap simulate`: the stripe's blur, noise and the encoder
   disk) and mapped by `scanmap map` (extraction, decoding, registration), the map placed
   in the world by the first true pose: after the last scan, drop-off cells free more
@@ -120,7 +121,7 @@ DEEP_CUT = 0.01  # m: eroded wall cells an object reaches deeper into are counte
 PLACEMENTS = 8  # placements of the hazards scene on the cells (`placed_run`)
 RANDOM_ROOMS = 12  # random hazard rooms measured (`random_run`)
 PEOPLE_ROOMS = 6  # rooms with people measured (`people_rooms_run`)
-RENDERED_ROOMS = 3  # random rooms rendered and mapped by the whole pipeline (`rendered_rooms`)
+RENDERED_ROOMS = 3  # random and mixed rooms each rendered and mapped (`rendered_rooms`)
 CELL = GridConfig().resolution  # m
 
 
@@ -268,10 +269,11 @@ def rendered_run(scene: Scene | None = None, scans: int | None = None,
 
 def rendered_rooms(count: int, first: int = 1, scans: int | None = None
                    ) -> dict[str, dict[str, float]]:
-    """`rendered_run` on `count` random hazard rooms (seeds `first` on), by room, and the
-    worst over them."""
-    rooms = {f"random_room({seed})": rendered_run(random_room(seed), scans)
-             for seed in range(first, first + count)}
+    """`rendered_run` on `count` random hazard rooms and `count` mixed rooms (black-lined
+    holes, black carpet, glass, dim light; seeds `first` on), by room, and the worst over
+    them."""
+    rooms = {f"{draw.__name__}({seed})": rendered_run(draw(seed), scans)
+             for draw in (random_room, mixed_room) for seed in range(first, first + count)}
     runs = list(rooms.values())
     worst = {"rooms": len(runs), **{key: max((r[key] for r in runs), default=0) for key in (
         "drop_free", "drop_free_strict", "edge_error_cells", "drop_false")},
@@ -521,7 +523,7 @@ def run(quick: bool = False) -> list[dict]:
     per_scan = 1e-3 * timing["per_scan_ms"]
     rendered, crowd_rendered = m["rendered"], m["rendered_rooms"]
     both = [rendered] + ([crowd_rendered] if crowd_rendered["rooms"] else [])
-    rendered_rooms_text = (f" and {crowd_rendered['rooms']} random rooms"
+    rendered_rooms_text = (f" and {crowd_rendered['rooms'] // 2} random and mixed rooms each"
                            if crowd_rendered["rooms"] else "")
     edge_rendered = max(r["edge_error_cells"] for r in both)
     within_rendered = min(r["edge_within_one"] for r in both)
@@ -616,7 +618,7 @@ def main(argv: list[str] | None = None) -> int:
                             "rooms (benchmarks.random_rooms), each and the worst")
     parser.add_argument("--rendered", type=int, metavar="N",
                         help="instead: the drop-off measures through the whole pipeline "
-                        "(frames rendered, scanmap map) on N random hazard rooms")
+                        "(frames rendered, scanmap map) on N random and N mixed rooms")
     parser.add_argument("--people", type=int, metavar="N",
                         help="instead: the ghost and erosion measures on N rooms with "
                         "people (benchmarks.random_rooms), each and summed")
