@@ -23,7 +23,7 @@
   FREE one (8 neighbours: the edge a robot drives up to) to the nearest true drop-off
   cell, in map cells, its largest value and the share within one cell (issue 17: the
   edge within one cell of the truth; on a raster of EDGE_RASTER cells drawn from the
-  scene where it is at hand, `scene_drop_off_errors`); false drop-offs: the map's
+  scene where it is at hand); false drop-offs: the map's
   DROP_OFF cells on true floor more than a cell (1.5 cells, diagonals included) from any
   true drop-off.
 """
@@ -131,13 +131,20 @@ def map_to_world(poses: np.ndarray, reference: np.ndarray) -> np.ndarray:
     return reference[0] @ invert_pose(poses[0])
 
 
-def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray
-               ) -> dict[str, float]:
+def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray,
+               scene: Scene | None = None) -> dict[str, float]:
     """Obstacle precision, recall, F1, coverage and free precision, and the drop-off
-    measures where the raster has drop-offs (module docstring)."""
+    measures where the raster has drop-offs (module docstring): with the `scene` the
+    raster shows, on a raster of EDGE_RASTER cells drawn from it for the same band and
+    slope (on the map's own 5 cm cells the true edge is placed only to within half a
+    cell: a cell diagonal to a drop-off cell measures 1.41 where the drop-off's corner
+    lies 0.85 cells from its centre)."""
     truth_class = _raster_at_cells(raster.classes, raster, seg, world_from_map, -1)
     near_truth = morphology.dilate(raster.classes == RASTER_OBSTACLE)
     near_truth_at = _raster_at_cells(near_truth, raster, seg, world_from_map, False)
+    drop_raster = raster
+    if scene is not None and (raster.classes == RASTER_DROP_OFF).any():
+        drop_raster = truth_raster(scene, EDGE_RASTER, *raster.band, max_slope=raster.max_slope)
     predicted = seg.state == floor.OBSTACLE
     free = seg.state == floor.FREE
     scored = predicted & (truth_class != RASTER_OUTSIDE) & (truth_class >= 0)
@@ -151,17 +158,7 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
             "free_precision": float((truth_class[free] == RASTER_FLOOR).mean()) if free.any()
             else float("nan"),
             "free_cells_on_obstacles": int((truth_class[free] == RASTER_OBSTACLE).sum()),
-            "band": list(raster.band)} | drop_off_errors(seg, raster, world_from_map)
-
-
-def scene_drop_off_errors(seg: Segmentation, scene: Scene, raster: TruthRaster,
-                          world_from_map: np.ndarray) -> dict[str, float]:
-    """`drop_off_errors` on a truth raster of EDGE_RASTER cells drawn from the scene, for
-    the band and slope of `raster` (a recording's): on the map's own 5 cm cells the true
-    edge is placed only to within half a cell (a cell diagonal to a drop-off cell measures
-    1.41 where the drop-off's corner lies 0.85 cells from its centre)."""
-    fine = truth_raster(scene, EDGE_RASTER, *raster.band, max_slope=raster.max_slope)
-    return drop_off_errors(seg, fine, world_from_map)
+            "band": list(raster.band)} | drop_off_errors(seg, drop_raster, world_from_map)
 
 
 def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray

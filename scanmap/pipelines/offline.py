@@ -279,11 +279,9 @@ def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
                                                           reference[indices[usable]])
     raster = TruthRaster.load(folder / "raster.npz")
     world_from_map = evaluation.map_to_world(estimate[usable], reference[indices[usable]])
-    errors["map"] = evaluation.map_errors(seg, raster, world_from_map)
-    scene = folder / "scene.json"
-    if "drop_off_edge_cells" in errors["map"] and scene.is_file():  # the simulated scene
-        errors["map"] |= evaluation.scene_drop_off_errors(seg, load_scene(scene), raster,
-                                                          world_from_map)
+    scene = folder / "scene.json"  # the simulated scene: the drop-off edge on finer cells
+    errors["map"] = evaluation.map_errors(seg, raster, world_from_map,
+                                          load_scene(scene) if scene.is_file() else None)
     return errors
 
 

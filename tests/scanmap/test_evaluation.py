@@ -142,9 +142,8 @@ def test_on_the_scenes_fine_raster_a_ring_a_cell_wider_lies_half_a_cell_out(haza
     seg = segmentation_of(hazards_raster)
     state = seg.state.copy()
     state[morphology.dilate(seg.state == DROP_OFF) & (seg.state == FREE)] = DROP_OFF
-    errors = evaluation.scene_drop_off_errors(dataclasses.replace(seg, state=state),
-                                              builtin_scene("hazards"), hazards_raster,
-                                              np.eye(4))
+    errors = evaluation.map_errors(dataclasses.replace(seg, state=state), hazards_raster,
+                                   np.eye(4), builtin_scene("hazards"))
     half = 0.5 + 0.5 * evaluation.EDGE_RASTER / hazards_raster.resolution
     assert errors["drop_off_edge_error_cells"] == pytest.approx(np.hypot(half, half), abs=0.01)
     assert errors["drop_off_edge_within_one"] == 1.0
