@@ -18,9 +18,10 @@ around shows the stripe was bright enough there. Lines farther out are not judge
 stripe fades with range, and on the rendered frames their gaps had kept a black-lined
 hole 1.6-2 m off from ever counting (mixed_room(2): 21 cells FREE inside it). A stripe
 that fades with range (floor far off, lit at grazing incidence) drops out here and there
-all along the line: the rendered corridor has 672 such runs in 20 scans from 1.8 m out, and in the
-rendered corridor and `hazards` room the floor returns on 96-98 % of the lines out to
-1.75 m and on at most 85 % beyond, against 97-99 % at every range in ideal scans. A
+all along the line: the rendered corridor has 672 such runs in 20 scans from 1.8 m out,
+and in the rendered corridor and `hazards` room the floor returns on 96-98 % of the
+lines out to 1.75 m and on at most 85 % beyond, against 97-99 % at every range in ideal
+scans. A
 missed peak spans a line or two, and a laser shadow behind an object ends at the
 object, not the floor: none is taken for a dark patch. A frame whose points do not lie
 on the laser plane (a scan from another sensor, read from a bag) shows nothing unlit.
