@@ -21,6 +21,7 @@ from scanmap.grid.unlit import (
     MIN_RUN,
     MIN_SPAN,
     _line_returns,
+    fan_end_lines,
     frame_slots,
     unlit_floor,
     unlit_lines,
@@ -77,6 +78,48 @@ def test_unlit_lines_follow_the_rule_read_literally(returned, floor, missing, st
                                   plain_unlit_lines(returned, floor, crossing, reach, ok))
 
 
+def plain_fan_end_lines(returned, floor, crossing, reach, ok, lit) -> np.ndarray:
+    """`fan_end_lines`' rule read literally: from a frame's outermost floor returns on,
+    the lines without a return the scan lit, ended where the lit lines end."""
+    out = np.zeros(returned.shape, bool)
+    width = returned.shape[1]
+    for f in range(returned.shape[0]):
+        on_floor = [u for u in range(width) if returned[f, u] and floor[f, u]]
+        for a, step in ((on_floor[0], -1), (on_floor[-1], 1)) if on_floor else ():
+            run = []
+            for v in range(a + step, -1 if step < 0 else width, step):
+                if not lit[v] or returned[f, v]:
+                    break
+                run.append(v)
+            after = a + step * (len(run) + 1)
+            if (0 <= after < width and returned[f, after]) or len(run) < MIN_RUN:
+                continue
+            span = np.hypot(*(crossing[f, run[-1], :2] - crossing[f, a, :2]))
+            if ok[f, a] and all(ok[f, run]) and reach[f, run[-1]] < reach[f, a] \
+                    and span >= MIN_SPAN:
+                out[f, run] = True
+    return out
+
+
+@settings(max_examples=200, deadline=None)
+@given(arrays(bool, (3, 40)), arrays(bool, (3, 40)), arrays(bool, (40,)), st.integers(0, 39),
+       st.floats(0.001, 0.05), st.sampled_from([-1, 1]))
+def test_fan_end_lines_follow_the_rule_read_literally(returned, floor, lit, fan_end, step,
+                                                      nearer):
+    """Ranges falling (or growing) with u; the scan's lit lines end at `fan_end`."""
+    u = np.arange(40)
+    crossing = np.zeros((3, 40, 3))
+    crossing[..., 0] = 2.5 + nearer * step * (u - 20)
+    reach = crossing[..., 0].copy()
+    ok = np.ones((3, 40), bool)
+    ok[:, 7] = False
+    lit |= u < fan_end
+    floor &= returned
+    np.testing.assert_array_equal(fan_end_lines(returned, floor, crossing, reach, ok, lit),
+                                  plain_fan_end_lines(returned, floor, crossing, reach, ok,
+                                                      lit))
+
+
 def near_patch(points: np.ndarray, scene: Scene, margin: float = 0.01) -> np.ndarray:
     """Whether each point lies within `margin` m of the scene's (axis-aligned) patch."""
     region = scene.floor_regions[0]
@@ -121,6 +164,16 @@ def test_a_black_patch_before_a_fading_stripe_is_found_unlit():
         assert near_patch(unlit, scene, 0.03).all()
         found += len(unlit)
     assert found > 60  # measured: 98 (22 counting the lines beyond the run)
+
+
+def test_a_black_patch_the_fans_end_falls_in_is_found_unlit():
+    """The laser's fan lights no floor nearer than 1.45 m: the patch's lines run from its
+    far rim's floor to the fan's end without a return, bounded by no lit floor nearer."""
+    scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
+    ideal = list(ideal_scans(scene, scans=2))[1]
+    unlit = unlit_floor(ideal.scan, MODEL, ideal.frame_poses)
+    assert near_patch(unlit, scene, 0.03).all()
+    assert len(unlit) > 100  # measured: 215 (none counting only runs between floor returns)
 
 
 TILTED = MODEL.with_changes(head_mount=HeadMount(position=(0.1, -0.05, 0.02), roll=0.02,
