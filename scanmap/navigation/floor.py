@@ -271,7 +271,8 @@ class Segmentation:
     """Floor and obstacle layers of a window of the grid (row = y, column = x).
 
     floor_height: (ny, nx) float32, NaN where unknown. is_floor: open floor: known floor
-    (seen there, stood on, or a small gap in it), nothing is in the robot's band, and
+    (seen there, stood on, or a small gap in it, not near floor a laser line crossed
+    without a return: `FloorConfig.floor_probe`), nothing is in the robot's band, and
     nothing may hang above unseen (not the floor under a table); and the edge of a step
     between two floors (an OBSTACLE). Traversable = is_floor and FREE (the band was
     seen). slope: (ny, nx) float32 floor slope (rad) of the cells
@@ -616,7 +617,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     state[scant & (state == FREE) & morphology.dilate((state == DROP_OFF) | dips, 2)] = UNKNOWN
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
-                        is_floor=((is_floor | stood | holes) & (state != OBSTACLE) & ~drop
+                        is_floor=((is_floor | stood | holes & ~dim) & (state != OBSTACLE) & ~drop
                                   & ~covered) | edges,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,

@@ -335,6 +335,15 @@ def test_a_hole_below_max_hole_is_never_free_and_a_dark_patch_of_that_size_unkno
     assert (dark == UNKNOWN).all()
 
 
+@pytest.mark.parametrize("height", [-0.5, 0.0])
+def test_a_dark_patch_is_not_floor_either(height):
+    """A black-lined hole or black floor: refused as a gap between samples, it is no floor
+    to a planner reading `is_floor` either (7 of the hole's 16 inner cells were, UNKNOWN)."""
+    scene = small_patch_scene(height, 0.0)
+    seg = list(mapped(scene))[-1].seg
+    assert not seg.is_floor[inner_cells(seg, scene.floor_regions[0])].any()
+
+
 @pytest.mark.xfail(strict=True, reason="known gap (issue 17): the 0.25 m hole 1.2-1.7 m away "
                    "shows at most 5 cm below the floor (the top of its far wall, where the laser "
                    "lands), not more than a step: only its cells without a hit around them are "
