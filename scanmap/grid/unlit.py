@@ -30,7 +30,9 @@ the scan lit (`_lit_lines`: LIT_SHARE of the frames that returned the floor or n
 on it returned the floor, and half the frames did either; a frame facing an object
 nearby returns the object there). A black-lined hole 0.3 m across seen only with the
 rendered fan's end (1.63 m) inside it was otherwise never found: rendered
-mixed_room(5), 14 cells FREE inside it.
+mixed_room(5), 14 cells FREE inside it. Floor hidden from the camera there (under a table
+top or a chair seat the laser passes beneath) counts as it does between floor returns:
+the office's first 12 ideal scans 892 -> 1083 unlit points, its map's states the same.
 
 A missed peak spans a line or two, and a laser shadow behind an object ends at the
 object, not the floor: none is taken for a dark patch. A frame whose points do not lie
