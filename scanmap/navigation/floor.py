@@ -48,7 +48,9 @@ samples (below), so its edge is within a cell of the last floor seen (the cells 
 the drop-off themselves are where it is: no cell on from them, nor into a cell beside one
 in a row or a column, as along a hole's side wall). It spreads across the
 scanner's view (between its lines: within half of `max_gap` and a cell of the line of
-sight through a cell showing it) but not away from where the robot stood, beyond the
+sight through a cell showing it, and within a cell of it on the other side, or between
+two such cells, one on either side: past the outermost line that shows it, the hole's
+edge lies anywhere up to the next line) but not away from where the robot stood, beyond the
 cells that show it (past a hole's far wall the floor is lit, its unlit cells are gaps
 between the lines), and towards it only across the rim's shadow (`rim_shadow`): rays
 that cross the floor's height at a hole's near rim pass below it only farther on.
@@ -186,8 +188,9 @@ class FloorConfig:
     drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
     without observed floor, no farther from the nearest place the robot stood than they
     (and half a cell), nearer by at most rim_shadow times their range (and a cell), and
-    within half of max_gap and a cell of the line of sight through one of them (from
-    the nearest place the robot stood, if at least blind_range off): rays
+    within half of max_gap and a cell of the line of sight through one of them and a
+    cell of it on its other side, or between two of them (from the nearest place the
+    robot stood, if at least blind_range off): rays
     reach step_height and a height bin or two below the floor (`below_floor`) about
     (step_height + 2 mask_dz) / camera height times the range past the rim, 0.1 for a
     camera 1 m up. max_hole: the largest patch without hits (m, each side of its
@@ -518,9 +521,14 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         ranges, nearest = _ranges(layers)
         near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
         viewed_from = np.where(ranges >= params.blind_range / res, nearest, -1)
-        spread = morphology.dilate_in_range(drop, shadow, ranges, near, ranges + 0.5,
-                                            max(round(params.drop_reach / res), 1),
-                                            viewed_from, 0.5 * params.max_gap / res + 1.0)
+        # Sideways only between two lines that show it, a cell past the outermost: out to
+        # one side of some cell showing it and to the other of another (beyond, the hole's
+        # edge lies anywhere up to the next line, which on rendered frames far off often
+        # returned nothing: up to 4 cells of floor taken)
+        gap = 0.5 * params.max_gap / res + 1.0
+        spread = np.logical_and(*(morphology.dilate_in_range(
+            drop, shadow, ranges, near, ranges + 0.5, max(round(params.drop_reach / res), 1),
+            viewed_from, sides) for sides in ((1.0, gap), (gap, 1.0))))
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there:
         # not a cell on from it, beside it in a row or a column, as at a hole's side wall)

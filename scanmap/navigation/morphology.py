@@ -54,38 +54,40 @@ def geodesic_dilate(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndar
 def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
                     low: np.ndarray, high: np.ndarray, steps: int,
                     viewed_from: np.ndarray | None = None,
-                    lateral: float = math.inf) -> np.ndarray:
+                    lateral: float | tuple[float, float] = math.inf) -> np.ndarray:
     """`geodesic_dilate` of `seeds` through the cells of `within` whose value in `ranges`
     lies in the bounds (`low`, `high`) of the seed they came from (the widest, where two
     seeds reach a cell at the same depth): a drop-off's spread kept to the ranges from
     the scanner that the cells showing it lie at. With `viewed_from` (per cell, the flat
     index of the cell it was seen from, -1 for none), also within `lateral` cells of the
     line of sight through the seed they came from (the first to reach them): between the
-    scanner's lines, not along a far wall seen aslant."""
+    scanner's lines, not along a far wall seen aslant; a pair (right, left) bounds each
+    side apart (`_off_sight`'s sign)."""
     if viewed_from is None:
         viewed_from = np.full(seeds.shape, -1, np.int64)
+    right, left = lateral if isinstance(lateral, tuple) else (lateral, lateral)
     return _breadth_first(np.ascontiguousarray(seeds, dtype=np.bool_),
                           np.ascontiguousarray(within, dtype=np.bool_), steps, ranges, low,
                           high, np.ascontiguousarray(viewed_from, dtype=np.int64),
-                          float(lateral))
+                          float(right), float(left))
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _off_sight(seed: int, viewed_from: int, y: int, x: int, nx: int) -> float:
-    """Distance (cells) of cell (y, x) from the line through `seed` and the cell it was
-    seen from (0 without one)."""
+    """Signed distance (cells) of cell (y, x) from the line through `seed` and the cell it
+    was seen from, positive to the left looking from that cell (0 without one)."""
     if viewed_from < 0 or viewed_from == seed:
         return 0.0
     sy, sx = seed // nx, seed % nx
     py, px = viewed_from // nx, viewed_from % nx
     dy, dx = sy - py, sx - px
-    return abs(dx * (y - py) - dy * (x - px)) / math.sqrt(dy * dy + dx * dx)
+    return (dx * (y - py) - dy * (x - px)) / math.sqrt(dy * dy + dx * dx)
 
 
 @njit(cache=True, nogil=True)
 def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np.ndarray,
                    low: np.ndarray, high: np.ndarray, viewed_from: np.ndarray,
-                   lateral: float) -> np.ndarray:
+                   right: float, left: float) -> np.ndarray:
     """`dilate_in_range`: one pass from a queue of the seeds, each cell carrying the bounds
     and the sight line of the seed it came from."""
     ny, nx = seeds.shape
@@ -117,7 +119,7 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
                 if not within[yy, xx] or not lo <= ranges[yy, xx] <= hi:
                     continue
-                if _off_sight(seed, sight, yy, xx, nx) > lateral:
+                if not -right <= _off_sight(seed, sight, yy, xx, nx) <= left:
                     continue
                 n = yy * nx + xx
                 if not out[yy, xx]:

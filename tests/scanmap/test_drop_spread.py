@@ -71,11 +71,13 @@ def test_it_matches_the_plain_search(data, steps):
 
 
 @settings(max_examples=80, deadline=None)
-@given(data=st.data(), steps=st.integers(1, 10), lateral=st.floats(0.0, 5.0))
-def test_from_one_seed_it_keeps_to_the_seeds_line_of_sight(data, steps, lateral):
+@given(data=st.data(), steps=st.integers(1, 10), right=st.floats(0.0, 5.0),
+       left=st.floats(0.0, 5.0) | st.none())
+def test_from_one_seed_it_keeps_to_the_seeds_line_of_sight(data, steps, right, left):
     """One seed seen from one cell: the plain search through the cells of `within` no
-    farther than `lateral` from the line through the two (closed form: the cross product
-    over the line's length)."""
+    farther than `right` to the right of the line through the two and `left` to its left
+    (`right` both ways without `left`; closed form: the cross product over the line's
+    length, positive to the left looking from the cell it was seen from)."""
     ny, nx = data.draw(shapes)
     within = data.draw(arrays(np.bool_, (ny, nx)))
     ranges = data.draw(arrays(np.float32, (ny, nx), elements=st.integers(0, 6)))
@@ -86,12 +88,14 @@ def test_from_one_seed_it_keeps_to_the_seeds_line_of_sight(data, steps, lateral)
     low, high = ranges - 2.0, ranges + 2.0
     y, x = np.mgrid[:ny, :nx]
     length = np.sqrt(float((sy - py) ** 2 + (sx - px) ** 2))
-    off = np.abs((sx - px) * (y - py) - (sy - py) * (x - px)) / length if length else 0 * y
+    off = ((sx - px) * (y - py) - (sy - py) * (x - px)) / length if length else 0 * y
     viewed_from = np.full((ny, nx), py * nx + px, np.int64)
+    lateral = right if left is None else (right, left)
+    bounded = (-right <= off) & (off <= (right if left is None else left))
     assert np.array_equal(
         morphology.dilate_in_range(seeds, within, ranges, low, high, steps, viewed_from,
                                    lateral),
-        spread_reference(seeds, within & (off <= lateral), ranges, low, high, steps))
+        spread_reference(seeds, within & bounded, ranges, low, high, steps))
 
 
 def test_the_floor_beyond_a_hole_seen_from_one_side_is_never_a_drop_off():
