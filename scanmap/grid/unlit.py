@@ -196,14 +196,22 @@ def _floor_runs(returned: np.ndarray, floor: np.ndarray, foreign: np.ndarray,
                 if last >= 0 and u - last - 1 >= MIN_RUN and floor[f, last] and floor[f, u]:
                     return True
                 last = u
-        for u in range(returned.shape[1]):
-            if returned[f, u] and floor[f, u]:
-                if _lit_run(returned, lit, f, u, -1) >= MIN_RUN:
-                    return True
-                break
-        if last >= 0 and floor[f, last] and _lit_run(returned, lit, f, last, 1) >= MIN_RUN:
+        first, last = _floor_ends(returned, floor, f)
+        if first >= 0 and max(_lit_run(returned, lit, f, first, -1),
+                              _lit_run(returned, lit, f, last, 1)) >= MIN_RUN:
             return True
     return False
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _floor_ends(returned: np.ndarray, floor: np.ndarray, f: int) -> tuple[int, int]:
+    """The first and the last image line on which frame f returned the floor (-1, -1
+    without any)."""
+    first, last = -1, -1
+    for u in range(returned.shape[1]):
+        if returned[f, u] and floor[f, u]:
+            first, last = (u if first < 0 else first), u
+    return first, last
 
 
 @njit(cache=True, nogil=True)
@@ -231,10 +239,7 @@ def unlit_lines(returned: np.ndarray, floor: np.ndarray, crossing: np.ndarray,
     from `_floor_crossings`."""
     out = np.zeros(returned.shape, np.bool_)
     for f in range(returned.shape[0]):
-        first_lit, last_lit = returned.shape[1], -1
-        for u in range(returned.shape[1]):
-            if returned[f, u] and floor[f, u]:
-                first_lit, last_lit = min(first_lit, u), u
+        first_lit, last_lit = _floor_ends(returned, floor, f)
         last = -1
         for u in range(returned.shape[1]):
             if not returned[f, u]:
@@ -271,10 +276,7 @@ def fan_end_lines(returned: np.ndarray, floor: np.ndarray, crossing: np.ndarray,
     nothing: no lit floor bounds the run there."""
     out = np.zeros(returned.shape, np.bool_)
     for f in range(returned.shape[0]):
-        first, last = -1, -1
-        for u in range(returned.shape[1]):
-            if returned[f, u] and floor[f, u]:
-                first, last = (u if first < 0 else first), u
+        first, last = _floor_ends(returned, floor, f)
         if first < 0:
             continue
         for a, step in ((first, -1), (last, 1)):

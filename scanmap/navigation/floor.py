@@ -274,8 +274,8 @@ class Segmentation:
     """Floor and obstacle layers of a window of the grid (row = y, column = x).
 
     floor_height: (ny, nx) float32, NaN where unknown. is_floor: open floor: known floor
-    (seen there, stood on, or a small gap in it, not near floor a laser line crossed
-    without a return: `FloorConfig.floor_probe`), nothing is in the robot's band, and
+    (seen there, stood on, or a small gap in it, not within max_gap of floor a laser
+    line crossed without a return: `scanmap.grid.unlit`), nothing is in the robot's band, and
     nothing may hang above unseen (not the floor under a table); and the edge of a step
     between two floors (an OBSTACLE). Traversable = is_floor and FREE (the band was
     seen). slope: (ny, nx) float32 floor slope (rad) of the cells
