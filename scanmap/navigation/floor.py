@@ -39,10 +39,12 @@ so the floor below the step is not reached through it.
 
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
-floor is not where it must be), is a DROP_OFF; the drop-off spreads up to `drop_reach`
-through cells without any hit that touch no hit but the drop-off's own and do not lie
-between two floor cells at most `max_hole` apart (the shadow of the rim: not the gaps
-between the laser's samples, nor the shadow of an object standing beside the
+floor is not where it must be), and below the floor where the robot stood nearest, is a
+DROP_OFF (a trench no lower than that floor, behind a ramp's raised top or beside a
+platform, may be reached round its ends: UNKNOWN until seen); the drop-off spreads up to
+`drop_reach` through cells without any hit that touch no hit but the drop-off's own and
+do not lie between two floor cells at most `max_hole` apart (the shadow of the rim: not
+the gaps between the laser's samples, nor the shadow of an object standing beside the
 drop-off), and from that shadow one cell on up to the rim but for the gaps between floor
 samples (below), so its edge is within a cell of the last floor seen (the cells showing
 the drop-off themselves are where it is: no cell on from them, nor into a cell beside one
@@ -498,6 +500,11 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
     drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
                           robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
+    if drop.any():  # and below the floor where the robot stood nearest (`_stood_floor`)
+        ranges, nearest = _ranges(layers)
+        drop &= nk.below_floor(layers.levels, layers.nlev, layers.seen,
+                               _stood_floor(lowest, floor_height, nearest), robot.step_height,
+                               layers.z_min, layers.mask_dz)
     seeds = drop.copy()
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
@@ -518,7 +525,6 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # as 5 cells into the unlit floor beyond); a cell showing it nearer than
         # blind_range to every place the robot stood was seen from farther off, and
         # the nearest place gives no line of sight
-        ranges, nearest = _ranges(layers)
         near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
         viewed_from = np.where(ranges >= params.blind_range / res, nearest, -1)
         # Sideways only between two lines that show it, a cell past the outermost: out to
@@ -687,6 +693,17 @@ def _ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
     if not cells.any():
         return np.zeros(layers.shape, np.float32), np.full(layers.shape, -1, np.int64)
     return distance_transform(cells)
+
+
+def _stood_floor(lowest: np.ndarray, floor_height: np.ndarray, nearest: np.ndarray
+                 ) -> np.ndarray:
+    """`lowest` or, where lower, the floor height at the place the robot stood nearest
+    (`_ranges`). Floor below the floor around it but not below the floor the robot stood
+    on is a trench the floor may reach round its ends (the floor behind a ramp's raised
+    top or beside a platform, in their shadow): UNKNOWN until seen, not a drop-off."""
+    if nearest.size and nearest.flat[0] < 0:  # it stood nowhere in the window
+        return lowest
+    return np.fmin(lowest, floor_height.reshape(-1)[nearest]).astype(np.float32)
 
 
 def _stood_cells(layers: CellLayers) -> np.ndarray:

@@ -16,6 +16,7 @@ from benchmarks.bench_hazards import (
     hazard_run,
     mapped,
     ramp_f1,
+    rendered_run,
     traversable,
     truth_classes,
 )
@@ -477,3 +478,17 @@ def test_a_drop_off_reaches_no_cell_on_from_the_cells_that_show_it():
     # rim's shadow one cell on, up to the last floor seen, carried it diagonally into a
     # cell beside those hits, on the floor beyond the wall: 1.6 cells off the true edge
     assert hazard_run(23, scene=mixed_room(216))["edge_error_cells"] <= math.sqrt(2.0)
+
+
+def test_a_trench_behind_a_ramps_raised_top_is_no_drop_off():
+    # Mixed room 10's last four scans rendered and mapped: a 7 deg ramp ends 11 cm above
+    # the floor 0.4 m before the room's end wall. The floor between, in the ramp top's
+    # shadow, lies below the ramp's top (the floor carried there) but not below the floor
+    # the robot stood on, and the truth's floor reaches it round the ramp's sides; the
+    # rays passing low over it to the wall's foot made it a drop-off 49 cells from any
+    # true one (23 false drop-off cells)
+    scene = mixed_room(10)
+    run = rendered_run(replace(scene, scan_poses=scene.scan_poses[-4:]))
+    assert run["drop_free"] == 0
+    assert run["edge_error_cells"] <= math.sqrt(2.0)  # measured 0.8
+    assert run["drop_false"] <= 5  # measured 1
