@@ -500,6 +500,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
     drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
                           robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
+    ranges = None  # `_ranges`, when a rule needs them
     if drop.any():  # and below the floor where the robot stood nearest (`_stood_floor`)
         ranges, nearest = _ranges(layers)
         drop &= nk.below_floor(layers.levels, layers.nlev, layers.seen,
@@ -570,7 +571,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # corner, from its near rim's floor to the top of its far wall
     seen_floor &= known_floor | ~morphology.dilate(drop | dips)
     drop |= _sunk(bare & ~holes & ~is_floor & ~stood & ~assumed, layers, is_floor, lowest,
-                  drop, round(params.max_hole / res), params.plane_tolerance)
+                  drop, round(params.max_hole / res), params.plane_tolerance, ranges)
     gap = round(params.max_gap / res)
     lines = np.zeros((ny, nx), bool)
     if gap > 2:
@@ -653,13 +654,17 @@ def _cells(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np.ndarray,
-          drop: np.ndarray, size: int, tolerance: float) -> np.ndarray:
+          drop: np.ndarray, size: int, tolerance: float, ranges: np.ndarray | None
+          ) -> np.ndarray:
     """The patches of `dark` (no hit in or around them, not a gap) at most `size` cells on
     each side, not at the window's edge nor next to a drop-off (its shadow is the drop's
     own rule), with a surface wholly below the floor model (`_below_model`) within two
-    cells: the floor goes down into a small patch nothing returned from (a hole's far
-    wall, seen only at its top). Not the cells around the patch: a hit or floor near, they
-    may be floor (the hole's extent is not known there), so they stay UNKNOWN."""
+    cells, no nearer to where the robot stood than the patch's nearest cell (`ranges`,
+    `_ranges`' computed here if None): the floor goes down into a small patch nothing
+    returned from (a hole's far wall, seen only at its top, lies beyond the hole; a patch
+    beyond a lowered area's far edge is the unlit floor there). Not the cells around the
+    patch: a hit or floor near, they may be floor (the hole's extent is not known there),
+    so they stay UNKNOWN."""
     ny, nx = dark.shape
     low = _below_model(layers, is_floor, lowest, tolerance)
     out = np.zeros((ny, nx), bool)
@@ -671,7 +676,13 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
     for index in np.flatnonzero(ok):
         rows, cols = morphology.box_slices(boxes[index])
         patch = labels[rows, cols] == index
-        if near[rows, cols][patch].any() and not near_drop[rows, cols][patch].any():
+        if not near[rows, cols][patch].any() or near_drop[rows, cols][patch].any():
+            continue
+        if ranges is None:
+            ranges = _ranges(layers)[0]
+        around = (slice(max(rows.start - 2, 0), rows.stop + 2),
+                  slice(max(cols.start - 2, 0), cols.stop + 2))
+        if ranges[around][low[around]].max() >= ranges[rows, cols][patch].min():
             out[rows, cols] |= patch
     return out
 

@@ -386,20 +386,23 @@ def test_an_opening_is_measured_between_the_floor_samples(apart, a, b, bridged):
         == (apart <= 5)  # without samples, to the cells' edges
 
 
-@pytest.mark.parametrize("wall", [False, True])
+@pytest.mark.parametrize("wall", [None, 1.13, 0.87])
 def test_a_small_patch_without_returns_is_a_hole_beside_a_surface_below_the_floor(wall):
     # A 0.25 m patch without hits in dense floor hits: a gap, floor; with the top of its
     # far wall seen 4-12 cm below the floor (a surface below the floor model, though not
-    # wholly a step below), a hole: the cells without a hit around them are sunk
+    # wholly a step below), a hole: the cells without a hit around them are sunk. The
+    # same surface on the patch's near side (x = 0.87 m, seen from the origin) is not
+    # its far wall: the patch lies beyond a lowered area (rendered mixed room 10: 15
+    # cells of unlit floor beyond a step down's far side were DROP_OFF)
     grid = HeightGrid(GridConfig(extent=20.0))
     a = np.arange(-1.5, 1.5, 0.02)
     x, y = np.meshgrid(a + 1.0, a)
     keep = (np.abs(x - 1.0) > 0.125) | (np.abs(y) > 0.125)
     points = np.column_stack([x[keep], y[keep], np.zeros(keep.sum())])
-    if wall:
+    if wall is not None:
         wy, wz = np.meshgrid(np.linspace(-0.1, 0.1, 6), np.linspace(-0.12, -0.04, 5))
-        top = np.column_stack([np.full(wy.size, 1.13), wy.ravel(), wz.ravel()])
-        points = np.vstack([points[(np.abs(points[:, 0] - 1.14) > 0.02)
+        top = np.column_stack([np.full(wy.size, wall), wy.ravel(), wz.ravel()])
+        points = np.vstack([points[(np.abs(points[:, 0] - wall) > 0.02)
                                    | (np.abs(points[:, 1]) > 0.125)], top])
     grid.insert(points, np.array([0.0, 0.0, 1.0]), 1.0)
     layers = grid.layers((-0.4, -1.0, 2.0, 1.0))
@@ -409,11 +412,11 @@ def test_a_small_patch_without_returns_is_a_hole_beside_a_surface_below_the_floo
     lowest = np.zeros(layers.shape, np.float32)
     none = np.zeros(layers.shape, bool)
     assert 4 <= dark.sum() <= 9
-    sunk = floor_module._sunk(dark, layers, is_floor, lowest, none, 6, 0.03)
-    assert (sunk == (dark if wall else none)).all()
+    sunk = floor_module._sunk(dark, layers, is_floor, lowest, none, 6, 0.03, None)
+    assert (sunk == (dark if wall == 1.13 else none)).all()
     drop = ndimage.binary_dilation(dark) & ~dark  # beside a drop-off: the drop's own rule
-    assert not floor_module._sunk(dark, layers, is_floor, lowest, drop, 6, 0.03).any()
-    assert not floor_module._sunk(dark, layers, is_floor, lowest, none, 1, 0.03).any()
+    assert not floor_module._sunk(dark, layers, is_floor, lowest, drop, 6, 0.03, None).any()
+    assert not floor_module._sunk(dark, layers, is_floor, lowest, none, 1, 0.03, None).any()
 
 
 def between_floor_lines(first: float, spacing: float, params: FloorConfig

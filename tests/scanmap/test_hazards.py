@@ -74,6 +74,17 @@ def test_no_drop_off_is_free_after_any_scan(any_scene):
                for step, truth in steps)
 
 
+def test_no_drop_off_lies_off_the_true_ones_after_any_scan(hazards):
+    # Unlit patches beyond a lowered area's far side (the stairwell's, seen from 1.5 m
+    # in scans 1 and 2) took the lowered floor before them, within two cells, for a
+    # hole's far wall seen at its top: 3 cells more than 1.5 cells from any true
+    # drop-off were DROP_OFF (rendered mixed room 10: 15, beyond a step down). A far
+    # wall lies beyond its hole, no nearer to where the robot stood than the patch
+    _, steps, raster = hazards
+    assert all(drop_measures(step.seg, truth, raster)["drop_false"] == 0
+               for step, truth in steps)
+
+
 @pytest.mark.parametrize("dx, dy, yaw_deg", [
     (0.01, 0.0, 0.0),  # the dock's step inside a cell: wall-foot hits step down to it
     (0.025, 0.025, 0.0),  # edges through cell centres: a hole's corner between rim cells
