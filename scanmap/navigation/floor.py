@@ -79,9 +79,10 @@ from nearby floor is an assumption, not a sighting), as does a cell too steep to
 floor. A real hole of max_hole or less returns hits below the floor (its far wall) that
 are not floor, so it is not a gap; it is a DROP_OFF where those lie more than a step
 down, and its cells without any hit around them are when a surface lies wholly below the
-floor model (more than `plane_tolerance`) within two cells of them, away from any other
-drop-off: the floor goes down into a small patch nothing returned from (seen from afar,
-this scanner's laser lands only on the top few cm of a hole's far wall).
+floor model (more than `plane_tolerance`) within two cells of them and no nearer to
+where the robot stood, away from any other drop-off: the floor goes down into a small
+patch nothing returned from (seen from afar, this scanner's laser lands only on the top
+few cm of a hole's far wall, which lies beyond the hole).
 
 Obstacles (docs/architecture.md): occupied space between floor + step height and floor + robot
 height. A cell is FREE only if its floor height is known and not unlit (above), nothing
