@@ -631,6 +631,14 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # to drive on there
     scant = (layers.counts[:, :, 0, gk.HITS] <= 2) & (layers.nlev > 0) & ~stood
     state[scant & (state == FREE) & morphology.dilate((state == DROP_OFF) | dips, 2)] = UNKNOWN
+    # Floor next to a DROP_OFF cell more than plane_tolerance below the largest floor
+    # plane: a hole's far wall's top, a few cm down, grown into the floor (rendered
+    # rooms: FREE a cell inside the hole), or a rim the edge crosses
+    beside = (state == FREE) & (layers.nlev > 0) & ~stood & morphology.dilate(state == DROP_OFF)
+    if planes and beside.any():
+        by, bx = _cells(beside)
+        low = bottom[by, bx] < planes[0].height_at(xs[bx], ys[by]) - params.plane_tolerance
+        state[by[low], bx[low]] = UNKNOWN
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
                         is_floor=((is_floor | stood | holes & ~dim) & (state != OBSTACLE) & ~drop

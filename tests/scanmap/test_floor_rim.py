@@ -1,0 +1,39 @@
+"""A hole's rim in the segmentation, on hand-built cells: floor next to a drop-off whose
+hits reach down the hole's far wall is not driven on."""
+
+from __future__ import annotations
+
+import pytest
+
+from scanmap.grid import _kernels as gk
+from scanmap.navigation.floor import DROP_OFF, FREE, UNKNOWN, segment
+from tests.scanmap.test_overhangs import ROBOT, floor_cells
+
+ROWS = slice(6, 18)  # the hole's extent across, and its rim's
+
+
+def rim_cells(rim_bottom: float):
+    """Floor sloping down 8 mm a cell over three columns to a rim column whose one level
+    runs from -1.4 cm down to `rim_bottom`, then a hole 0.3 m deep; every cell hit 20
+    times and seen free over the whole band."""
+    layers = floor_cells()
+    layers.counts[...] = 20
+    for col, z in ((10, -0.008), (11, -0.016), (12, -0.024)):
+        layers.levels[ROWS, col, 0, gk.LO], layers.levels[ROWS, col, 0, gk.HI] = z, z + 0.002
+    layers.levels[ROWS, 13, 0, gk.LO], layers.levels[ROWS, 13, 0, gk.HI] = rim_bottom, -0.014
+    layers.levels[ROWS, 14:20, 0, gk.LO], layers.levels[ROWS, 14:20, 0, gk.HI] = -0.31, -0.30
+    return layers
+
+
+@pytest.mark.parametrize("rim_bottom, free", [(-0.061, False), (-0.02, True)])
+def test_floor_beside_a_drop_off_reaching_down_its_far_wall_is_not_free(rim_bottom, free):
+    # Rendered mixed rooms 5 and 10: a cell holding the rim and the far wall's top, one
+    # level from -1 cm down to -4.4 and -6.1 cm, was floor (its slope 11 deg, the cells
+    # before it lowered too) and FREE a cell inside the hole. Floor next to a DROP_OFF
+    # cell reaching more than plane_tolerance (3 cm) below the floor's plane is UNKNOWN;
+    # a rim within it, or at the floor's height, stays FREE
+    seg = segment(rim_cells(rim_bottom), ROBOT)
+    assert (seg.state[ROWS, 14:20] == DROP_OFF).all()
+    assert seg.is_floor[ROWS, 13].all()  # floor, but not driven on
+    assert (seg.state[ROWS, 13] == (FREE if free else UNKNOWN)).all()
+    assert (seg.state[ROWS.stop, 14:20] == FREE).all()  # the floor beside, at its height
