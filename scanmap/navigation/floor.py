@@ -96,7 +96,9 @@ no height it has not seen is suspect: occupied (within two height bins) in a
 neighbouring cell, or possibly under an overhanging board (a table top seen only at its
 rim), and it is not floor on one or two hits within two cells of a drop-off or a dip
 (at the real extraction's noise, 0.3 px, a rim's or far wall's hits land up to two
-cells inside a hole); otherwise it is UNKNOWN. Occupied means a level with log-odds
+cells inside a hole), nor floor next to a drop-off whose hits reach more than
+`plane_tolerance` below the largest floor plane (the rim and the far wall's top in one
+level); otherwise it is UNKNOWN. Occupied means a level with log-odds
 of at least `min_logodds`: one below it (seen, then seen through more often since:
 where a person walked on) leaves its cell UNKNOWN, neither an obstacle nor free. The
 footprint cells, observed floor or not, are FREE unless something occupies their band
