@@ -670,8 +670,8 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
     """The patches of `dark` (no hit in or around them, not a gap) at most `size` cells on
     each side, not at the window's edge nor next to a drop-off (its shadow is the drop's
     own rule), with a surface wholly below the floor model (`_below_model`) within two
-    cells, no nearer to where the robot stood than the patch's nearest cell (`ranges`,
-    `_ranges`' computed here if None): the floor goes down into a small patch nothing
+    cells, no nearer to where the robot stood than the patch's nearest cell (`ranges`:
+    `_ranges`' distances, computed here when None): the floor goes down into a small patch nothing
     returned from (a hole's far wall, seen only at its top, lies beyond the hole; a patch
     beyond a lowered area's far edge is the unlit floor there). Not the cells around the
     patch: a hit or floor near, they may be floor (the hole's extent is not known there),
