@@ -98,11 +98,11 @@ rim), and it is not floor on one or two hits within two cells of a drop-off or a
 (at the real extraction's noise, 0.3 px, a rim's or far wall's hits land up to two
 cells inside a hole), nor floor next to a drop-off whose hits reach more than
 `plane_tolerance` below the largest floor plane (the rim and the far wall's top in one
-level); otherwise it is UNKNOWN. Occupied means a level with log-odds
-of at least `min_logodds`: one below it (seen, then seen through more often since:
-where a person walked on) leaves its cell UNKNOWN, neither an obstacle nor free. The
-footprint cells, observed floor or not, are FREE unless something occupies their band
-or may overhang them.
+level), nor floor between two drop-off cells across it; otherwise it is UNKNOWN.
+Occupied means a level with log-odds of at least `min_logodds`: one below it (seen,
+then seen through more often since: where a person walked on) leaves its cell UNKNOWN,
+neither an obstacle nor free. The footprint cells, observed floor or not, are FREE
+unless something occupies their band or may overhang them.
 
 Why the map of one scan is mostly UNKNOWN: a cell is seen free at the heights that the
 rays crossing it have there, and every ray of this scanner falls from the camera (1 m
@@ -641,6 +641,10 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         by, bx = _cells(beside)
         low = bottom[by, bx] < planes[0].height_at(xs[bx], ys[by]) - params.plane_tolerance
         state[by[low], bx[low]] = UNKNOWN
+    # Floor between two DROP_OFF cells across it (a row or a column): a rim's or far
+    # wall's hits landed inside the hole (rendered mixed room 3), or a strip a cell wide
+    # between two holes that no robot drives
+    state[(state == FREE) & ~stood & _between(state == DROP_OFF)] = UNKNOWN
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
                         is_floor=((is_floor | stood | holes & ~dim) & (state != OBSTACLE) & ~drop
@@ -715,6 +719,13 @@ def _ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
     if not cells.any():
         return np.zeros(layers.shape, np.float32), np.full(layers.shape, -1, np.int64)
     return distance_transform(cells)
+
+
+def _between(mask: np.ndarray) -> np.ndarray:
+    """Cells with a cell of `mask` on both sides of them in their row or in their
+    column."""
+    padded = np.pad(mask, 1)
+    return (padded[1:-1, :-2] & padded[1:-1, 2:]) | (padded[:-2, 1:-1] & padded[2:, 1:-1])
 
 
 def _stood_floor(lowest: np.ndarray, floor_height: np.ndarray, nearest: np.ndarray

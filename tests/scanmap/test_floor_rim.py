@@ -37,3 +37,16 @@ def test_floor_beside_a_drop_off_reaching_down_its_far_wall_is_not_free(rim_bott
     assert seg.is_floor[ROWS, 13].all()  # floor, but not driven on
     assert (seg.state[ROWS, 13] == (FREE if free else UNKNOWN)).all()
     assert (seg.state[ROWS.stop, 14:20] == FREE).all()  # the floor beside, at its height
+
+
+def test_floor_between_two_drop_off_cells_is_not_free():
+    # Rendered mixed room 3: a cell of floor-height hits (a rim's, landed a cell inside
+    # the hole) with the hole's cells on either side of it was FREE more than a cell
+    # inside. Floor between two DROP_OFF cells across it is UNKNOWN; the hole's rim, the
+    # drop-off on one side only, stays FREE
+    layers = rim_cells(-0.02)
+    layers.levels[11, 16, 0, gk.LO], layers.levels[11, 16, 0, gk.HI] = 0.0, 0.002
+    seg = segment(layers, ROBOT)
+    assert seg.state[11, 15] == DROP_OFF and seg.state[11, 17] == DROP_OFF
+    assert seg.state[11, 16] == UNKNOWN
+    assert (seg.state[ROWS, 13] == FREE).all()
