@@ -632,11 +632,12 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # to two cells inside the hole (the cells between unknown), and so few are no floor
     # to drive on there
     scant = (layers.counts[:, :, 0, gk.HITS] <= 2) & (layers.nlev > 0) & ~stood
-    state[scant & (state == FREE) & morphology.dilate((state == DROP_OFF) | dips, 2)] = UNKNOWN
+    dropped = state == DROP_OFF  # the rules below only take FREE cells to UNKNOWN
+    state[scant & (state == FREE) & morphology.dilate(dropped | dips, 2)] = UNKNOWN
     # Floor next to a DROP_OFF cell more than plane_tolerance below the largest floor
     # plane: a hole's far wall's top, a few cm down, grown into the floor (rendered
     # rooms: FREE a cell inside the hole), or a rim the edge crosses
-    beside = (state == FREE) & (layers.nlev > 0) & ~stood & morphology.dilate(state == DROP_OFF)
+    beside = (state == FREE) & (layers.nlev > 0) & ~stood & morphology.dilate(dropped)
     if planes and beside.any():
         by, bx = _cells(beside)
         low = bottom[by, bx] < planes[0].height_at(xs[bx], ys[by]) - params.plane_tolerance
@@ -644,7 +645,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # Floor between two DROP_OFF cells across it (a row or a column): a rim's or far
     # wall's hits landed inside the hole (rendered mixed room 3), or a strip a cell wide
     # between two holes that no robot drives
-    state[(state == FREE) & ~stood & _between(state == DROP_OFF)] = UNKNOWN
+    state[(state == FREE) & ~stood & _between(dropped)] = UNKNOWN
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
                         is_floor=((is_floor | stood | holes & ~dim) & (state != OBSTACLE) & ~drop
@@ -675,11 +676,11 @@ def _sunk(dark: np.ndarray, layers: CellLayers, is_floor: np.ndarray, lowest: np
     each side, not at the window's edge nor next to a drop-off (its shadow is the drop's
     own rule), with a surface wholly below the floor model (`_below_model`) within two
     cells, no nearer to where the robot stood than the patch's nearest cell (`ranges`:
-    `_ranges`' distances, computed here when None): the floor goes down into a small patch nothing
-    returned from (a hole's far wall, seen only at its top, lies beyond the hole; a patch
-    beyond a lowered area's far edge is the unlit floor there). Not the cells around the
-    patch: a hit or floor near, they may be floor (the hole's extent is not known there),
-    so they stay UNKNOWN."""
+    `_ranges`' distances, computed here when None): the floor goes down into a small
+    patch nothing returned from (a hole's far wall, seen only at its top, lies beyond the
+    hole; a patch beyond a lowered area's far edge is the unlit floor there). Not the
+    cells around the patch: a hit or floor near, they may be floor (the hole's extent is
+    not known there), so they stay UNKNOWN."""
     ny, nx = dark.shape
     low = _below_model(layers, is_floor, lowest, tolerance)
     out = np.zeros((ny, nx), bool)
