@@ -6,9 +6,11 @@ against a `LocalMap` with a `Prior`. Results are `RegistrationResult`s with a po
 covariance, fitness, inlier RMSE, degenerate directions and a `RegistrationStatus`.
 
 The floor: it constrains only z, roll and pitch. Planar mode (the default: the floor is
-flat, the pose is x, y, yaw) drops points below `floor_band` before anything else, and
-matches only walls (neighbourhoods that are a line seen from above and that rise), so
-neither the floor nor a table top can pull x, y or yaw. SE(3) mode keeps the floor: it
+flat, the pose is x, y, yaw) drops points within `floor_band` of the floor before anything
+else (those below it stay: the walls of a hole or a step down fix x and y as a wall
+does, where a corridor's own walls leave its axis to odometry), and matches only walls
+(neighbourhoods that are a line seen from above and that rise), so neither the floor
+nor a table top can pull x, y or yaw. SE(3) mode keeps the floor: it
 is what fixes z, roll and pitch there.
 """
 

@@ -1,17 +1,18 @@
 """Scan preparation in one pass: filter, de-skew, voxel-downsample.
 
 Kept points: finite, horizontal range within [min_range, max_range], and (planar mode)
-above the floor band. Each is de-skewed to the scan's start pose and added to its
-source voxel's statistics. Each voxel then yields one source point: the mean of its
-neighbourhood (itself and its 6 face neighbours), with that neighbourhood's normal and
-the variance sum(sigma_i^2) / count^2. The neighbourhood, not the voxel alone: where a
-noisy surface lies near a voxel face the grid splits its noise and biases each voxel's
-mean, and a voxel cut off an edge can look flat. A voxel whose neighbourhood is neither
-a plane (SE(3) mode) nor a wall (planar mode) - a box corner, a wall meeting a box - is
-dropped: its mean lies between surfaces, and matching it to either would bias the pose.
-So is a voxel within 3 sigma of the range limits: the limit truncates its noise (only
-the near side of a wall at 4 m is kept), which would pull it toward the sensor.
-The kept full-resolution points go into the local map once the scan's pose is known.
+off the floor band: above it, or below it (a hole's walls). Each is de-skewed to the
+scan's start pose and added to its source voxel's statistics. Each voxel then yields one
+source point: the mean of its neighbourhood (itself and its 6 face neighbours), with
+that neighbourhood's normal and the variance sum(sigma_i^2) / count^2. The
+neighbourhood, not the voxel alone: where a noisy surface lies near a voxel face the
+grid splits its noise and biases each voxel's mean, and a voxel cut off an edge can look
+flat. A voxel whose neighbourhood is neither a plane (SE(3) mode) nor a wall (planar
+mode) - a box corner, a wall meeting a box - is dropped: its mean lies between surfaces,
+and matching it to either would bias the pose. So is a voxel within 3 sigma of the range
+limits: the limit truncates its noise (only the near side of a wall at 4 m is kept),
+which would pull it toward the sensor. The kept full-resolution points go into the local
+map once the scan's pose is known.
 """
 
 from __future__ import annotations
@@ -77,11 +78,11 @@ def prepare_source(points: np.ndarray, config: RegistrationConfig,
         t0, t1 = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 0.0)
     twist = deskew_twist(np.asarray(motion, dtype=np.float64), t0, t1)
     inv_span = 1.0 / (t1 - t0) if t1 > t0 else 0.0
-    min_z = config.floor_band if config.planar else -np.inf
+    band = config.floor_band if config.planar else 0.0
     keys, values = new_table(min(n, _FIRST_TABLE))
     cloud, cloud_variance, means, normals, variance = _prepare_kernel(
         points, sigma, config.default_range_sigma, times, t0, inv_span, twist,
-        config.min_range ** 2, config.max_range ** 2, min_z, config.voxel_size,
+        config.min_range ** 2, config.max_range ** 2, band, config.voxel_size,
         config.min_plane_points, config.flatness, config.scans_2d,
         LINE if config.planar else PLANE, blob_flag(config), keys, values)
     return Source(means, normals, variance, cloud, cloud_variance)
@@ -89,7 +90,7 @@ def prepare_source(points: np.ndarray, config: RegistrationConfig,
 
 @njit(cache=True, nogil=True)
 def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, min_r2, max_r2,
-                    min_z, voxel, min_points, flatness, scans_2d, shape_flag, blobs, keys,
+                    band, voxel, min_points, flatness, scans_2d, shape_flag, blobs, keys,
                     values):
     n = points.shape[0]
     inv_voxel = 1.0 / voxel
@@ -109,7 +110,7 @@ def _prepare_kernel(points, sigma, default_sigma, times, t0, inv_span, twist, mi
         x, y, z = float(points[i, 0]), float(points[i, 1]), float(points[i, 2])
         r2 = x * x + y * y
         # NaN fails every comparison: non-finite points drop out here.
-        if not (r2 >= min_r2 and r2 <= max_r2 and z >= min_z and abs(z) < 1e6):
+        if not (r2 >= min_r2 and r2 <= max_r2 and abs(z) >= band and abs(z) < 1e6):
             continue
         s = scan_fraction(times[i], t0, inv_span)
         if s != last_s:  # points of one frame share a time: one sin/cos per frame

@@ -35,8 +35,8 @@ _BLOCK = 4  # shifts per side of a block the branch and bound bounds at once
 
 
 def _points(source: Source, config: RegistrationConfig) -> np.ndarray:
-    """At most _MAX_POINTS of the source's points above the floor band, evenly taken."""
-    points = source.points[source.points[:, 2] >= config.floor_band]
+    """At most _MAX_POINTS of the source's points off the floor band, evenly taken."""
+    points = source.points[np.abs(source.points[:, 2]) >= config.floor_band]
     if len(points) > _MAX_POINTS:
         points = points[np.linspace(0, len(points) - 1, _MAX_POINTS).astype(np.int64)]
     return points

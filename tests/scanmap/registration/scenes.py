@@ -24,16 +24,20 @@ MAX_RANGE = 4.0
 @dataclass(frozen=True)
 class Scene:
     """Axis-aligned boxes (lo, hi corners), round rooms seen from inside (cx, cy, radius),
-    and the floor z = 0."""
+    and the floor z = 0 but over pits: open boxes below it (lo, hi corners, hi z = 0)."""
 
     boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]]
     cylinders: list[tuple[float, float, float]] = field(default_factory=list)
+    pits: list[tuple[tuple[float, float, float], tuple[float, float, float]]] = \
+        field(default_factory=list)
 
     def shifted(self, dx: float, dy: float) -> Scene:
         """The same scene moved by (dx, dy)."""
         return Scene([((a[0] + dx, a[1] + dy, a[2]), (b[0] + dx, b[1] + dy, b[2]))
                       for a, b in self.boxes],
-                     [(cx + dx, cy + dy, r) for cx, cy, r in self.cylinders])
+                     [(cx + dx, cy + dy, r) for cx, cy, r in self.cylinders],
+                     [((a[0] + dx, a[1] + dy, a[2]), (b[0] + dx, b[1] + dy, b[2]))
+                      for a, b in self.pits])
 
 
 def _wall(x0, x1, y0, y1, height=1.2):
@@ -85,6 +89,13 @@ def _cast(scene: Scene, origins: np.ndarray, directions: np.ndarray) -> np.ndarr
     with np.errstate(divide="ignore", invalid="ignore"):
         down = directions[:, 2] < 0
         best[down] = -origins[down, 2] / directions[down, 2]  # the floor
+        for lo, hi in scene.pits:  # through the floor's opening to a wall or the bottom
+            at = origins + best[:, None] * directions
+            inside = down & (at[:, 0] > lo[0]) & (at[:, 0] < hi[0]) & (at[:, 1] > lo[1]) \
+                & (at[:, 1] < hi[1])
+            t1 = (np.array(lo) - origins) / directions
+            t2 = (np.array(hi) - origins) / directions
+            best = np.where(inside, np.nanmin(np.maximum(t1, t2), axis=1), best)
         for lo, hi in scene.boxes:
             t1 = (np.array(lo) - origins) / directions
             t2 = (np.array(hi) - origins) / directions

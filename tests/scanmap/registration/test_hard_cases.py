@@ -86,6 +86,18 @@ def test_a_corridor_with_features_is_not_degenerate():
     assert np.all(np.abs(_error(result, truth)) < [0.005, 0.002, 0.002])
 
 
+def test_a_pits_walls_below_the_floor_fix_a_featureless_corridors_axis():
+    # The corridor's walls leave x to odometry (above); a pit in the floor ahead shows its
+    # walls below the floor, and planar registration matches them as it matches walls.
+    rng = np.random.default_rng(10)
+    scene = replace(corridor(with_features=False), pits=[((2.0, -0.3, -0.3), (2.5, 0.3, 0.0))])
+    truth = (0.6, 0.03, 0.02)
+    result, _ = _register(scene, [(0.0, 0.0, 0.0), (0.3, 0.0, 0.0)], truth,
+                          (0.615, -0.01, -0.01), rng)  # odometry 1.5 cm long
+    assert result.status is RegistrationStatus.OK and not result.degenerate
+    assert np.all(np.abs(_error(result, truth)) < [0.005, 0.002, 0.002])
+
+
 def test_a_scan_without_overlap_is_refused():
     rng = np.random.default_rng(12)
     local_map = _map_of(corridor(), [(2.0, 0.0, 0.0)], rng)
