@@ -17,10 +17,10 @@ floor, a ramp, a raised part).
 Cells without observed floor (under objects, under occluded table tops) take the height
 of the nearest floor cell within `fill_radius`, and beyond it that of the largest plane.
 
-Floor per cell: each candidate's slope is the steepest of the planes fitted to the
-candidates within `slope_reach` at most a step above it, at most a step below it, and
-both (at a crease the side a cell's height is on holds its own surface alone: the first
-row of a steep ramp is steep, not half as steep); a cell steeper than `max_slope` (default 15
+Floor per cell: each candidate's slope is that of the plane, fitted to the candidates
+within `slope_reach` of a cell near it, that fits them within the noise and explains the
+cell best (at a crease a window on the cell's own side: the first rows of a steep ramp
+are steep, not half as steep; `_kernels.local_slope`); a cell steeper than `max_slope` (default 15
 deg) does not join the floor: it is never FREE, and an OBSTACLE where its surface rises
 into the robot's band. So a ramp within max_slope and a step within the robot's step
 height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A cell

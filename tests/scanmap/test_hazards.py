@@ -20,7 +20,7 @@ from benchmarks.bench_hazards import (
     traversable,
     truth_classes,
 )
-from benchmarks.random_rooms import mixed_room, ramp_room, random_room
+from benchmarks.random_rooms import mixed_room, ramp_room, random_room, step_room
 from scanmap.grid import _kernels as gk
 from scanmap.navigation import DROP_OFF, FREE, LETHAL, OBSTACLE, UNKNOWN, inflate, morphology
 from scanmap.navigation.floor import FloorConfig
@@ -234,6 +234,15 @@ def test_turned_ramps_either_side_of_max_slope_are_told_apart(seed):
     # deg, steep ones of 17.2 and 16.7 deg (not), turned 44 and 3 deg. The steepest of
     # three noisy plane fits, taken everywhere, overshot the gentle ones: F1 0.76, 0.92
     assert hazard_run(scene=ramp_room(seed))["ramp_f1"] >= 0.95
+
+
+def test_the_floor_beside_a_turned_steps_face_does_not_carry_the_floor_down_it():
+    # Step room 11: a 6 cm step down turned to the cells. At scan 4 its lower floor's
+    # cells next to the face, each fitting a flat window of its own, were gentle, and the
+    # floor grew down from a rim cell 8 mm low to one 4.9 cm below it: 18 cells of the
+    # step FREE. Where a cell's own window is bent by the face, the cell is no gentler
+    # than the plane over that whole window
+    assert hazard_run(scene=step_room(11))["drop_free_any_scan"] == 0
 
 
 @pytest.mark.parametrize("room", [random_room(8), mixed_room(3), random_room(52),
