@@ -1068,9 +1068,10 @@ def _plates(boards: np.ndarray, occupied: np.ndarray) -> np.ndarray:
     same heights in at least two of the 8 neighbouring cells (a neighbour's board holds
     this one's middle height: a table top's rim does; a stray piece of a wall face, or a
     sloping line of hits that only touches the next cell's heights at an edge, does not),
-    and no neighbour holds anything more than two bins below them (the side of a box
-    under its top, the rest of a wall under a piece of it that rays grazing the face left
-    apart)."""
+    not all on one side of it (a sheet of stray hits sloping along a wall's face: its
+    cells along the face lie at other heights, only those towards the wall at its own), and
+    no neighbour holds anything more than two bins below them (the side of a box under its
+    top, the rest of a wall under a piece of it that rays grazing the face left apart)."""
     ny, nx = boards.shape
     out = np.zeros((ny, nx), np.uint64)
     for y in range(ny):
@@ -1080,14 +1081,16 @@ def _plates(boards: np.ndarray, occupied: np.ndarray) -> np.ndarray:
             below = _below(boards[y, x], 2)
             middle = np.uint64(1) << np.uint64((_lowest_bit(boards[y, x])
                                                 + _highest_bit(boards[y, x])) // 2)
-            count = 0
+            count, sx, sy = 0, 0, 0  # the neighbours at its middle height, their offsets' sum
             supported = False
             for yy in range(max(y - 1, 0), min(y + 2, ny)):
                 for xx in range(max(x - 1, 0), min(x + 2, nx)):
                     if (yy != y or xx != x) and boards[yy, xx] & middle:
                         count += 1
+                        sx += xx - x
+                        sy += yy - y
                     supported |= occupied[yy, xx] & below != 0
-            if count >= 2 and not supported:
+            if count >= 2 and not supported and sx * sx + sy * sy < count * count:
                 out[y, x] = _widen(boards[y, x])
     return out
 
