@@ -58,8 +58,8 @@ s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, last u
 scan id, bundle key, bundle mask[, scans whose rays reached it])`, where bit b of a mask covers
 z_min + [b, b+1) * mask_dz; `nlev[off]` levels in use; level k of the cell is record
 `off * K + k` of lev_f (lo, hi, log-odds, mean hit x, y offset from the cell centre,
-this scan's hit range), lev_n (hits, passes, scan stamp, scans that hit it) and
-lev_flag.
+this scan's hit range, mean hit height), lev_n (hits, passes, scan stamp, scans that hit
+it) and lev_flag.
 """
 
 from __future__ import annotations
@@ -69,8 +69,12 @@ from numba import njit
 
 # Fields of the float level record lev_f[li, :].
 # SLO, SHI: height range of the hits in scan `stamp` (valid while HIT_FLAG is set).
-LO, HI, LOGODDS, MX, MY, SLO, SHI = range(7)
-N_FLOAT_FIELDS = 7
+# MX, MY, MZ: the mean hit (a running mean, `_MEAN_WINDOW`), x and y from the cell's
+# centre and its height: a plane through the cells' mean hits fits a slope where the
+# mid-range height, taken with the mean hit's x and y, is off by up to a centimetre on
+# a cell that laser lines cross unevenly.
+LO, HI, LOGODDS, MX, MY, SLO, SHI, MZ = range(8)
+N_FLOAT_FIELDS = 8
 # Fields of the integer level record lev_n[li, :]; SCANS counts the scans that hit it.
 HITS, PASSES, STAMP, SCANS = 0, 1, 2, 3
 N_INT_FIELDS = 4
@@ -266,6 +270,7 @@ def _merge_down(lev_f, lev_n, lev_flag, nlev, off, k, levels) -> None:
     w = hb / max(ha + hb, 1.0)
     lev_f[ia, MX] += (lev_f[ib, MX] - lev_f[ia, MX]) * w
     lev_f[ia, MY] += (lev_f[ib, MY] - lev_f[ia, MY]) * w
+    lev_f[ia, MZ] += (lev_f[ib, MZ] - lev_f[ia, MZ]) * w
     lev_f[ia, LO] = min(lev_f[ia, LO], lev_f[ib, LO])
     lev_f[ia, HI] = max(lev_f[ia, HI], lev_f[ib, HI])
     lev_f[ia, LOGODDS] = max(lev_f[ia, LOGODDS], lev_f[ib, LOGODDS])
@@ -352,6 +357,7 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
         lev_f[li, LOGODDS] = 0.0
         lev_f[li, MX] = ox
         lev_f[li, MY] = oy
+        lev_f[li, MZ] = z
         lev_n[li, HITS] = 0
         lev_n[li, PASSES] = 0
         lev_n[li, STAMP] = scan
@@ -368,6 +374,7 @@ def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> 
     w = 1.0 / min(hits, _MEAN_WINDOW)
     lev_f[li, MX] += (ox - lev_f[li, MX]) * w
     lev_f[li, MY] += (oy - lev_f[li, MY]) * w
+    lev_f[li, MZ] += (z - lev_f[li, MZ]) * w
     _touch(lev_n, lev_flag, li, scan)
     if not lev_flag[li] & HIT_FLAG:
         lev_flag[li] |= HIT_FLAG

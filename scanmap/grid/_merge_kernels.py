@@ -46,6 +46,7 @@ from scanmap.grid._kernels import (
     LOGODDS,
     MX,
     MY,
+    MZ,
     PASSES,
     SCAN,
     SCANS,
@@ -252,6 +253,7 @@ def _join_level(lev_f, lev_n, lev_flag, nlev, off, rec_f, rec_n, mx, my, offset,
         w = hb / max(ha + hb, 1.0)
         lev_f[li, MX] += (mx - lev_f[li, MX]) * w
         lev_f[li, MY] += (my - lev_f[li, MY]) * w
+        lev_f[li, MZ] += (rec_f[MZ] - lev_f[li, MZ]) * w
         lev_f[li, LO] = min(lev_f[li, LO], lo)
         lev_f[li, HI] = max(lev_f[li, HI], hi)
         lev_f[li, LOGODDS] = min(lev_f[li, LOGODDS] + rec_f[LOGODDS], l_max)

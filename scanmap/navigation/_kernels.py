@@ -112,6 +112,37 @@ def floor_candidates(levels: np.ndarray, nlev: np.ndarray, thickness: float,
 
 
 @njit(cache=True, nogil=True)
+def mean_hit_heights(levels: np.ndarray, nlev: np.ndarray, candidates: np.ndarray,
+                     span: float) -> np.ndarray:
+    """The height of each floor candidate's mean hit (its lowest level's), to go with the
+    mean hit's x and y in `local_slope`: the middle of the level's heights lies up to a
+    centimetre off the plane there on a 15 deg ramp whose cells laser lines cross
+    unevenly. Only where the lowest levels of the cell and of its 8 neighbours each span
+    at most `span` (as much as a surface one may drive on rises across a cell): a taller
+    one holds a step's face, whose mean hit tells where rays met the face (a chain of
+    such cells down a 6 cm step came out just under 15 deg), and beside it a cell's
+    mean moves it in or out of a step's reach of the face's (cells of a step's edge in
+    or out of the floor, turning a step's drop-off cells unknown). The middle also where
+    the mean lies outside the level's heights (trimmed since by rays through its top or
+    bottom, or a level not built from hits)."""
+    ny, nx = candidates.shape
+    out = candidates.copy()
+    for y in range(ny):
+        for x in range(nx):
+            if np.isnan(candidates[y, x]):
+                continue
+            one_surface = True
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if nlev[yy, xx] and levels[yy, xx, 0, gk.HI] - levels[yy, xx, 0, gk.LO] > span:
+                        one_surface = False
+            mean = levels[y, x, 0, gk.MZ]
+            if one_surface and levels[y, x, 0, gk.LO] <= mean <= levels[y, x, 0, gk.HI]:
+                out[y, x] = mean
+    return out
+
+
+@njit(cache=True, nogil=True)
 def cell_points(mask: np.ndarray, heights: np.ndarray, xs: np.ndarray,
                 ys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows and columns of the cells of `mask`, row by row (as np.nonzero), and their

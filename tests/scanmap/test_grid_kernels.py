@@ -139,7 +139,8 @@ def test_hits_build_levels_like_the_reference_clustering():
     """Rows of cells, each hit by horizontal rays from far left at given heights; a first
     scan of rays passing through the cells at probe heights marks those heights seen free,
     so gaps with a probe (in a height bin strictly between two clusters) stay open and
-    others close (single linkage, then consolidation)."""
+    others close (single linkage, then consolidation); each level's mean hit height is
+    the mean of its cluster's heights, through the merges."""
     config = GridConfig(extent=20.0, bundle_run=0, levels=4)
     grid = HeightGrid(config)
     res, gap = config.resolution, config.merge_gap
@@ -181,6 +182,8 @@ def test_hits_build_levels_like_the_reference_clustering():
         got = layers.levels[iy, ix, :n, :2]
         np.testing.assert_allclose(got, np.array(merged), atol=1e-6)
         assert layers.counts[iy, ix, :n, 0].sum() == len(heights)
+        means = [heights[(heights >= lo) & (heights <= hi)].mean() for lo, hi in merged]
+        np.testing.assert_allclose(layers.levels[iy, ix, :n, gk.MZ], means, atol=1e-5)
         np.testing.assert_allclose(layers.levels[iy, ix, :n, gk.LOGODDS], config.l_hit)
 
 

@@ -147,6 +147,7 @@ def test_a_submap_moved_by_whole_cells_and_quarter_turns_is_moved_cell_for_cell(
     mx, my = before.levels[..., gk.MX], before.levels[..., gk.MY]
     np.testing.assert_allclose(after.levels[..., gk.MX], turned(c * mx - s * my), atol=1e-6)
     np.testing.assert_allclose(after.levels[..., gk.MY], turned(s * mx + c * my), atol=1e-6)
+    np.testing.assert_array_equal(after.levels[..., gk.MZ], turned(before.levels[..., gk.MZ]))
     np.testing.assert_array_equal(after.seen, turned(before.seen & ~occupied_bits(before)))
 
 

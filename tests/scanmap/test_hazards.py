@@ -254,6 +254,24 @@ def test_the_floor_beside_a_turned_steps_face_does_not_carry_the_floor_down_it()
     assert hazard_run(scene=step_room(11))["drop_free_any_scan"] == 0
 
 
+def test_a_gentle_ramps_cells_take_their_mean_hits_height_for_the_slope():
+    # Ramp room 206: a 14.6 deg ramp (floor) whose inner cells came out 15.0-15.3 deg, the
+    # middle of each cell's heights taken with its mean hit's x and y (F1 0.964); with the
+    # mean hit's height 0.977
+    assert hazard_run(scene=ramp_room(206))["ramp_f1"] >= 0.97
+
+
+def test_a_steps_face_is_no_surface_to_take_a_slope_from():
+    # Step room 8: a turned 6 cm step down, whose face leaves tall levels in the cells it
+    # crosses. Their mean hits lie low on the face (the lower floor's rays saw more of
+    # it); taken as the cells' heights they joined the two floors in slopes just under
+    # max_slope, the face became floor and the lower floor, within a step of it, no
+    # drop-off: 40 of its 338 drop-off cells found (257 with the middle of the face
+    # cells' heights)
+    run = hazard_run(scene=step_room(8))
+    assert run["drop_found"] >= 0.6 * run["drop_cells"]
+
+
 @pytest.mark.parametrize("room", [random_room(8), mixed_room(3), random_room(52),
                                   mixed_room(56)],
                          ids=["random8", "mixed3", "random52", "mixed56"])

@@ -144,6 +144,26 @@ def test_a_version_1_map_loads_with_no_scans_counted(tmp_path, mapped_grid):
         np.testing.assert_array_equal(old[name], new[name])
 
 
+def test_a_version_3_map_loads_with_its_levels_mean_heights_at_their_middles(tmp_path,
+                                                                            mapped_grid):
+    """Maps written before the level record kept its mean hit's height still load: the
+    middle of each level's heights stands in for it, every other layer as saved."""
+    path = tmp_path / "map.npz"
+    save_map(path, mapped_grid)
+    arrays = dict(np.load(path, allow_pickle=False))
+    arrays["format_version"] = np.array(3)
+    arrays["lev_f"] = np.delete(arrays["lev_f"], gk.MZ, axis=-1)
+    np.savez(tmp_path / "v3.npz", **arrays)
+    old = load_map(tmp_path / "v3.npz").grid.state()
+    new = mapped_grid.state()
+    levels = old["lev_f"]
+    np.testing.assert_allclose(levels[..., gk.MZ], 0.5 * (levels[..., gk.LO] + levels[..., gk.HI]))
+    np.testing.assert_array_equal(np.delete(levels, gk.MZ, axis=-1),
+                                  np.delete(new["lev_f"], gk.MZ, axis=-1))
+    for name in ("lev_n", "nlev", "cells", "tile_coords"):
+        np.testing.assert_array_equal(old[name], new[name])
+
+
 def test_corrupt_or_truncated_full_map_is_a_clear_error(tmp_path, mapped_grid):
     path = tmp_path / "map.npz"
     save_map(path, mapped_grid)
