@@ -143,6 +143,29 @@ def mean_hit_heights(levels: np.ndarray, nlev: np.ndarray, candidates: np.ndarra
 
 
 @njit(cache=True, nogil=True)
+def faces_below(levels: np.ndarray, nlev: np.ndarray, candidates: np.ndarray,
+                step: float) -> np.ndarray:
+    """Candidates whose level reaches from a floor beside them more than `step` down: a
+    face the robot cannot climb crosses the cell (the edge of a step down, its middle
+    no floor height), unlike a level as tall standing on the floor (the remnant of a
+    person's feet, not yet cleared)."""
+    ny, nx = candidates.shape
+    out = np.zeros((ny, nx), np.bool_)
+    for y in range(ny):
+        for x in range(nx):
+            if np.isnan(candidates[y, x]):
+                continue
+            lo = levels[y, x, 0, gk.LO]
+            if levels[y, x, 0, gk.HI] - lo <= step:
+                continue
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if candidates[yy, xx] - lo > step:  # False for NaN
+                        out[y, x] = True
+    return out
+
+
+@njit(cache=True, nogil=True)
 def cell_points(mask: np.ndarray, heights: np.ndarray, xs: np.ndarray,
                 ys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows and columns of the cells of `mask`, row by row (as np.nonzero), and their

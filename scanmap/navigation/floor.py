@@ -22,20 +22,22 @@ mean hits within `slope_reach` of a cell near it, that fits them within the nois
 explains the cell best (at a crease a window on the cell's own side: the first rows of a
 steep ramp are steep, not half as steep; `_kernels.local_slope`); a cell steeper than
 `max_slope` (default 15 deg) does not join the floor: it is never FREE, and an OBSTACLE
-where its surface rises into the robot's band. So a ramp within max_slope and a step
-within the robot's step height (default 5 cm) are driven on; a steeper ramp or a higher
-step is not. A cell that holds the edge of a higher step between two floors (the raised
-end or a side of a ramp that ends above the floor beside it: one level spanning more
-than a step, up to within `plane_tolerance` of the ramp's surface and from the floor
-below, or from higher up its face where the rays saw no lower, both floors at most two
-cells away) is floor, as both its parts are, and an OBSTACLE: the robot may not cross
-the step. A step's face leaves thin levels at in-between heights in the cells it crosses
-(0, -2, -6, -8 cm down an 8 cm step; four in-between levels where a 6 cm step's face
-crosses the cells at a slant), each within a step of the next: a candidate within a step
-of two candidates on either side of it that differ by more than a step and lie within
-3.4 cells of each other (as far as a ramp at `max_slope` rises 9/10 of a step:
-`bridged_steps`), joins the floor only from a floor cell next to it, and the growth goes
-no further from it, so the floor below the step is not reached through it.
+where its surface rises into the robot's band; nor does one whose lowest level reaches
+from a candidate beside it more than a step down (a face the robot cannot climb crosses
+it; `_kernels.faces_below`). So a ramp within max_slope and a step within the robot's
+step height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A cell
+that holds the edge of a higher step between two floors (the raised end or a side of a
+ramp that ends above the floor beside it: one level spanning more than a step, up to
+within `plane_tolerance` of the ramp's surface and from the floor below, or from higher
+up its face where the rays saw no lower, both floors at most two cells away) is floor,
+as both its parts are, and an OBSTACLE: the robot may not cross the step. A step's face
+leaves thin levels at in-between heights in the cells it crosses (0, -2, -6, -8 cm down
+an 8 cm step; four in-between levels where a 6 cm step's face crosses the cells at a
+slant), each within a step of the next: a candidate within a step of two candidates on
+either side of it that differ by more than a step and lie within 3.4 cells of each other
+(as far as a ramp at `max_slope` rises 9/10 of a step: `bridged_steps`), joins the floor
+only from a floor cell next to it, and the growth goes no further from it, so the floor
+below the step is not reached through it.
 
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
@@ -465,7 +467,10 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     at_hits = nk.mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
     slope = nk.local_slope(at_hits, hits_at, max(round(params.slope_reach / res), 1),
                            robot.step_height, res, params.plane_noise)
-    steep = slope > params.max_slope  # False for NaN
+    # steep, or crossed by a face down a step (no floor of its own: a step's edge between
+    # two floors at most, `step_edges`)
+    steep = (slope > params.max_slope) | nk.faces_below(layers.levels, layers.nlev, cand,
+                                                        robot.step_height)  # False for NaN
     bridges = nk.bridged_steps(cand, robot.step_height, _bridge_reach(robot, params, res)) \
         & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)

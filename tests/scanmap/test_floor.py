@@ -197,6 +197,24 @@ def test_a_step_edge_holds_a_face_or_its_upper_part_between_two_floors(bottom, f
     assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
 
 
+@pytest.mark.parametrize(("lo", "hi", "beside", "face"), [
+    (-0.055, 0.001, 0.0, True),    # the top of a 7.7 cm step's face, under the floor's edge
+    (0.0, 0.055, 0.0, False),      # as tall, standing on the floor: a person's feet left
+    (-0.04, 0.0, 0.0, False),      # a 4 cm step's face: the robot climbs it
+    (-0.055, 0.001, -0.077, False),  # no floor beside it more than a step above its bottom
+])
+def test_a_face_down_a_step_crosses_a_cell_whose_level_reaches_from_the_floor_beside_it(
+        lo, hi, beside, face):
+    # A row: floor at `beside`, the cell, the floor 7.7 cm down
+    levels = np.zeros((1, 5, 1, gk.N_FLOAT_FIELDS), np.float32)
+    levels[0, :, 0, gk.LO] = levels[0, :, 0, gk.HI] = [beside, beside, 0.0, -0.077, -0.077]
+    levels[0, 2, 0, gk.LO], levels[0, 2, 0, gk.HI] = lo, hi
+    nlev = np.ones((1, 5), np.uint8)
+    candidates = nk.floor_candidates(levels, nlev, 0.06, 0.2)
+    got = nk.faces_below(levels, nlev, candidates, 0.05)
+    assert got.tolist() == [[False, False, face, False, False]]
+
+
 def spans_no_step(heights: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> bool:
     """No cell next to `start` (in the grid) lies within 5 cm of it and more than 5 cm from
     `end`."""
