@@ -143,8 +143,7 @@ def mean_hit_heights(levels: np.ndarray, nlev: np.ndarray, candidates: np.ndarra
 
 
 @njit(cache=True, nogil=True)
-def faces_below(levels: np.ndarray, nlev: np.ndarray, candidates: np.ndarray,
-                step: float) -> np.ndarray:
+def faces_below(levels: np.ndarray, candidates: np.ndarray, step: float) -> np.ndarray:
     """Candidates whose level reaches from a floor beside them more than `step` down: a
     face the robot cannot climb crosses the cell (the edge of a step down, its middle
     no floor height), unlike a level as tall standing on the floor (the remnant of a

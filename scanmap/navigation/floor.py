@@ -464,12 +464,12 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # the most a cell's heights span on one surface one may drive on: max_slope across its
     # diagonal, and the noise
     one_surface = res * math.sqrt(2.0) * math.tan(params.max_slope) + 2.0 * params.plane_noise
-    at_hits = nk.mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
-    slope = nk.local_slope(at_hits, hits_at, max(round(params.slope_reach / res), 1),
+    mean_heights = nk.mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
+    slope = nk.local_slope(mean_heights, hits_at, max(round(params.slope_reach / res), 1),
                            robot.step_height, res, params.plane_noise)
     # steep, or crossed by a face down a step (no floor of its own: a step's edge between
     # two floors at most, `step_edges`)
-    steep = (slope > params.max_slope) | nk.faces_below(layers.levels, layers.nlev, cand,
+    steep = (slope > params.max_slope) | nk.faces_below(layers.levels, cand,
                                                         robot.step_height)  # False for NaN
     bridges = nk.bridged_steps(cand, robot.step_height, _bridge_reach(robot, params, res)) \
         & ~steep  # a step's face

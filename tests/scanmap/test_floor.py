@@ -211,7 +211,7 @@ def test_a_face_down_a_step_crosses_a_cell_whose_level_reaches_from_the_floor_be
     levels[0, 2, 0, gk.LO], levels[0, 2, 0, gk.HI] = lo, hi
     nlev = np.ones((1, 5), np.uint8)
     candidates = nk.floor_candidates(levels, nlev, 0.06, 0.2)
-    got = nk.faces_below(levels, nlev, candidates, 0.05)
+    got = nk.faces_below(levels, candidates, 0.05)
     assert got.tolist() == [[False, False, face, False, False]]
 
 
