@@ -118,11 +118,12 @@ def mean_hit_heights(levels: np.ndarray, nlev: np.ndarray, candidates: np.ndarra
     mean hit's x and y in `local_slope`: the middle of the level's heights lies up to a
     centimetre off the plane there on a 15 deg ramp whose cells laser lines cross
     unevenly. Only where the lowest levels of the cell and of its 8 neighbours each span
-    at most `span` (as much as a surface one may drive on rises across a cell): a taller
-    one holds a step's face, whose mean hit tells where rays met the face (a chain of
-    such cells down a 6 cm step came out just under 15 deg), and beside it a cell's
-    mean moves it in or out of a step's reach of the face's (cells of a step's edge in
-    or out of the floor, turning a step's drop-off cells unknown). The middle also where
+    at most `span` (as much as a surface one may drive on rises across a cell, and the
+    noise of its hits): a taller one holds a step's face, whose mean hit tells where
+    rays met the face (a chain of such cells down a 6 cm step came out just under 15
+    deg), and beside it a cell's mean moves it in or out of a step's reach of the face's
+    (cells of a step's edge in or out of the floor, turning a step's drop-off cells
+    unknown). The middle also where
     the mean lies outside the level's heights (trimmed since by rays through its top or
     bottom, or a level not built from hits)."""
     ny, nx = candidates.shape

@@ -462,8 +462,10 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     hits_at = layers.levels[:, :, 0, gk.MX:gk.MY + 1]  # mean hit offsets (a view: copied
     # contiguous, they took a fifth more of the slope's time)
     # the most a cell's heights span on one surface one may drive on: max_slope across its
-    # diagonal, and the noise
-    one_surface = res * math.sqrt(2.0) * math.tan(params.max_slope) + 2.0 * params.plane_noise
+    # diagonal, and the noise on both ends (the extremes of a cell's tens of hits lie about
+    # three times the noise off the surface: at twice, a 14.6 deg ramp's cells 3-4 m off,
+    # at 0.3 px of laser peak noise, were too thick for their mean hits to count)
+    one_surface = res * math.sqrt(2.0) * math.tan(params.max_slope) + 6.0 * params.plane_noise
     mean_heights = nk.mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
     slope = nk.local_slope(mean_heights, hits_at, max(round(params.slope_reach / res), 1),
                            robot.step_height, res, params.plane_noise)
