@@ -514,13 +514,14 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     lowest = morphology.min_filter(np.nan_to_num(floor_height, nan=np.inf), 5)
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
     drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
-                          robot.step_height, layers.z_min, layers.mask_dz) & ~is_floor & ~stood
+                          robot.step_height, layers.z_min, layers.mask_dz,
+                          one_surface) & ~is_floor & ~stood
     ranges = None  # `_ranges`, when a rule needs them
     if drop.any():  # and below the floor where the robot stood nearest (`_stood_floor`)
         ranges, nearest = _ranges(layers)
         drop &= nk.below_floor(layers.levels, layers.nlev, layers.seen,
                                _stood_floor(lowest, floor_height, nearest), robot.step_height,
-                               layers.z_min, layers.mask_dz)
+                               layers.z_min, layers.mask_dz, one_surface)
     seeds = drop.copy()
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)

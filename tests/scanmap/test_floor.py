@@ -215,6 +215,25 @@ def test_a_face_down_a_step_crosses_a_cell_whose_level_reaches_from_the_floor_be
     assert got.tolist() == [[False, False, face, False, False]]
 
 
+@pytest.mark.parametrize(("lo", "hi", "mean", "below"), [
+    (-0.070, -0.055, -0.062, True),    # wholly more than a step down
+    (-0.061, -0.048, -0.055, True),    # a floor 5.5 cm down, its highest hits noisy
+    (-0.052, -0.040, -0.046, False),   # a floor 4.6 cm down: the robot steps down to it
+    (-0.058, -0.0016, -0.0487, False),  # a face: too tall a level for its mean to tell
+    (-0.052, -0.045, -0.060, False),   # a mean outside the level's heights (trimmed)
+])
+def test_a_thin_level_whose_mean_hit_lies_more_than_a_step_down_is_below_the_floor(
+        lo, hi, mean, below):
+    # Floor at 0 beside it; no ray passed under the floor
+    levels = np.zeros((1, 2, 1, gk.N_FLOAT_FIELDS), np.float32)
+    levels[0, 1, 0, [gk.LO, gk.HI, gk.MZ]] = lo, hi, mean
+    nlev = np.ones((1, 2), np.uint8)
+    floor_height = np.zeros((1, 2), np.float32)
+    got = nk.below_floor(levels, nlev, np.zeros((1, 2), np.uint64), floor_height, 0.05,
+                         -1.0, 0.025, 0.037)
+    assert got.tolist() == [[False, below]]
+
+
 def spans_no_step(heights: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> bool:
     """No cell next to `start` (in the grid) lies within 5 cm of it and more than 5 cm from
     `end`."""

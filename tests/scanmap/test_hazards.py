@@ -283,6 +283,16 @@ def test_a_cell_holding_a_face_taller_than_a_step_is_no_floor():
     assert run["drop_found"] >= 0.7 * run["drop_cells"]
 
 
+def test_a_noisy_floor_just_more_than_a_step_down_is_a_drop_off():
+    # Step room 413 at 0.3 px of laser peak noise: a turned step 5.66 cm down, whose
+    # lower floor's levels reach up to 4.8 cm below the floor above (their highest hits
+    # noisy), their mean hits 5.5 cm: 65 of its 324 drop-off cells found, the rest
+    # UNKNOWN, with the highest hits (224 with the mean hits)
+    run = hazard_run(scene=step_room(413), pixel_sigma=0.3)
+    assert run["drop_free_any_scan"] == 0
+    assert run["drop_found"] >= 0.5 * run["drop_cells"]
+
+
 @pytest.mark.parametrize("room", [random_room(8), mixed_room(3), random_room(52),
                                   mixed_room(56)],
                          ids=["random8", "mixed3", "random52", "mixed56"])
