@@ -15,7 +15,8 @@ floor 6 cm below).
 Planes are then fitted to the floor region by sequential RANSAC and reported (the
 floor, a ramp, a raised part).
 Cells without observed floor (under objects, under occluded table tops) take the height
-of the nearest floor cell within `fill_radius`, and beyond it that of the largest plane.
+of the nearest floor cell within `fill_radius` (not of a step's edge joined to the floor,
+`touching_floor`), and beyond it that of the largest plane.
 
 Floor per cell: each candidate's slope is that of the plane, fitted to the candidates'
 mean hits within `slope_reach` of a cell near it, that fits them within the noise and
@@ -479,6 +480,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     has = ~np.isnan(level)
     gy, gx, cand_points = nk.cell_points(has, level, xs, ys)
     is_floor = np.zeros((ny, nx), bool)
+    carried = is_floor  # the floor whose heights `fill_radius` carries
     planes: tuple[FloorPlane, ...] = ()
     dominant = ransac_plane(cand_points, params, rng) if params.detect else None
     if dominant is not None and dominant[2].sum() >= params.min_plane_cells:
@@ -492,13 +494,16 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                                    math.tan(params.max_slope) * res, cand)
         joined = nk.touching_floor(cand, is_floor, bridges, robot.step_height)
         is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
+        # and its height, in between on a step's face, goes no further either: carried
+        # over a lower floor 5.5 cm down, it held that floor within a step of the floor
+        carried = is_floor & ~joined
         bridges &= ~joined
         planes = _planes_of(nk.cell_points(is_floor, cand, xs, ys)[2], params, rng)
     edges = nk.step_edges(layers.levels, layers.nlev, cand, is_floor, robot.step_height,
                           params.clearance, params.plane_tolerance)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
-    if is_floor.any():
-        distance, nearest = distance_transform(is_floor)
+    if carried.any():
+        distance, nearest = distance_transform(carried)
         fill = ~is_floor & (distance * res <= params.fill_radius)
         floor_height[fill] = floor_height.reshape(-1)[nearest[fill]]
     if planes:  # farther out, the largest floor plane
