@@ -16,8 +16,10 @@ def test_the_whole_command_row_times_start_to_exit_of_a_new_process(office_recor
                                                                       tmp_path):
     row = command_row(office_recording, tmp_path, runs=2)
     report = json.loads((tmp_path / "command" / "report.json").read_text())
-    # the whole command holds the job it reports, and the start-up and imports before it
-    assert min(row["runs_s"]) > report["job"]["wall_seconds"] + 0.1
+    # the whole command holds the job it reports, and the start-up and imports before it:
+    # the last run against the report it wrote (an earlier run on a quieter machine took
+    # 0.78 s against the last one's job of 1.13 s)
+    assert row["runs_s"][-1] > report["job"]["wall_seconds"] + 0.1
     assert len(row["runs_s"]) == 2 and row["median_s"] == pytest.approx(
         sum(row["runs_s"]) / 2)
     recorded = report["mapping"]["recorded_seconds"]
