@@ -123,9 +123,8 @@ def mean_hit_heights(levels: np.ndarray, nlev: np.ndarray, candidates: np.ndarra
     rays met the face (a chain of such cells down a 6 cm step came out just under 15
     deg), and beside it a cell's mean moves it in or out of a step's reach of the face's
     (cells of a step's edge in or out of the floor, turning a step's drop-off cells
-    unknown). The middle also where
-    the mean lies outside the level's heights (trimmed since by rays through its top or
-    bottom, or a level not built from hits)."""
+    unknown). The middle also where the mean lies outside the level's heights (trimmed
+    since by rays through its top or bottom, or a level not built from hits)."""
     ny, nx = candidates.shape
     out = candidates.copy()
     for y in range(ny):
