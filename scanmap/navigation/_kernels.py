@@ -633,16 +633,21 @@ _JUMP_LENGTHS = np.hypot(_JUMPS[:, 0], _JUMPS[:, 1])
 @njit(cache=True, nogil=True)
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
                 empty: np.ndarray, max_rise: float, candidates: np.ndarray) -> np.ndarray:
-    """Cells reachable from the seeds through 8-neighbours whose heights differ <= max_step,
-    and across the `empty` cells (no hit: a gap between the laser's lines) to the cells two
-    away whose heights differ by at most `max_rise` per cell of the distance (a floor's
-    slope, not a step's face), where every cell between lies in `empty` (its midpoint, or
-    both cells beside a knight's move), and each end is within max_step of the cells next
-    to the other that are within max_step of it (`_spans_no_step`), those cells read from
-    `candidates`: every floor candidate, also those left out of `heights` (too steep, a
-    step's face), as they are what shows a step beside a jump's end. Jumps are tried only
-    from the few candidates the neighbours alone did not reach (a jump is the same from
-    either end), and onwards."""
+    """Cells reachable from the seeds through 8-neighbours whose heights differ <=
+    max_step, each step only where every candidate next to its start within max_step of
+    it is within max_step of its end too (`_spans_no_step`: a cell at a step's edge, 9
+    mm low as it holds some of the face, is within a step of the floor below it, 4.7 cm
+    down, but the floor it lies on is not: cell by cell the growth walked down the two,
+    step room 11's lower floor FREE), and across the `empty` cells (no hit: a gap
+    between the laser's lines) to the cells two away whose heights differ by at most
+    `max_rise` per cell of the distance (a floor's slope, not a step's face), where
+    every cell between lies in `empty` (its midpoint, or both cells beside a knight's
+    move), and each end is within max_step of the cells next to the other that are
+    within max_step of it (`_spans_no_step`), those cells read from `candidates`: every
+    floor candidate, also those left out of `heights` (too steep, a step's face), as
+    they are what shows a step beside a jump's end. Jumps are tried only from the few
+    candidates the neighbours alone did not reach (a jump is the same from either end),
+    and onwards."""
     ny, nx = heights.shape
     inside = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
@@ -682,7 +687,8 @@ def _spread(heights: np.ndarray, candidates: np.ndarray, inside: np.ndarray, que
         h = heights[y, x]
         for yy in range(max(y - 1, 0), min(y + 2, ny)):
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                if not inside[yy, xx] and abs(heights[yy, xx] - h) <= max_step:  # not NaN
+                if not inside[yy, xx] and abs(heights[yy, xx] - h) <= max_step \
+                        and _spans_no_step(candidates, y, x, heights[yy, xx], max_step):
                     inside[yy, xx] = True
                     queue[tail] = yy * nx + xx
                     tail += 1
@@ -804,14 +810,20 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     within the noise, gave a 16 deg ramp's first 10 cm 11-15 deg), and the floor before
     it a window on the floor. Where the cell's own window fits no plane (bent by a
     crease or a step's face, or too few cells for one), the cell is no gentler
-    than the plane fitted at the centres over that whole window: beside a turned step's
-    face, whose cells lie at in-between heights, the lower floor's cells each fit a flat
-    window, and the floor grew down the face (step room 11: 18 cells of a 6 cm step
-    FREE). Where no window holds it, the slope is the steepest of the planes fitted at
-    the centres to the cell's own window, to those at or above the cell's height and to
-    those at or below it (taken everywhere, the steepest of three noisy fits overshot a
-    14 deg ramp by 1-2.6 deg, and still the foot of a 14.6 deg one). Each fit at the
-    centres (`_plane_slope`): with fewer than six cells, or all near one line (the foot
+    than the gentler of the planes fitted at the centres over that whole window and over
+    its cells at or above the cell's height: beside a turned step's face, whose cells lie
+    at in-between heights, the lower floor's cells each fit a flat window, and the floor
+    grew down the face (step room 11: 18 cells of a 6 cm step FREE); both planes rise
+    with the face there. At a ramp's side near its low end, where the floor beside lies
+    less than a step below, the plane over the whole window tilts towards that floor (a
+    14.6 deg ramp's side cells came out at 15-19 deg, not floor), the one over the cells
+    at or above it does not; the floor's growth keeps off a step's lower side by itself
+    (`grow_region`). At a ramp's foot the whole window's plane is the gentler (half a
+    window's plane, at 0.3 px of noise, overshot gentle ramps). Where no window holds it,
+    the slope is the steepest of the planes fitted at the centres to the cell's own
+    window, to those at or above the cell's height and to those at or below it (taken
+    everywhere, the steepest of three noisy fits overshot a 14 deg ramp by 1-2.6 deg, and
+    still the foot of a 14.6 deg one). Each fit at the centres (`_plane_slope`): with fewer than six cells, or all near one line (the foot
     of a wall, a laser line's arc), the slope along them: a chain of cells each a little
     lower than the last is steep even where no plane fits it; NaN with fewer than
     three."""
@@ -866,8 +878,8 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                     if abs(residual) <= tolerance and score < best:
                         best, slope = score, math.atan(math.hypot(gx, gy))
             if best == np.inf or np.isnan(variances[y, x]):  # its own window fits none
-                over_all, steepest = _fits_at_centres(heights, radius, max_step, res, y, x)
-                slope = steepest if best == np.inf else max(slope, over_all)
+                gentler, steepest = _fits_at_centres(heights, radius, max_step, res, y, x)
+                slope = steepest if best == np.inf else max(slope, gentler)
             if slope > -np.inf:  # a fit on either side or over both
                 out[y, x] = slope
     return out
@@ -877,9 +889,9 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
 def _fits_at_centres(heights: np.ndarray, radius: int, max_step: float, res: float,
                      y: int, x: int) -> tuple[float, float]:
     """`local_slope`'s planes fitted at the cells' centres to the candidates within
-    `radius` and `max_step` of cell (y, x): the slope of the one over them all, and the
-    steepest of that one, the one over those at or above its height and the one over
-    those at or below it; -inf without any."""
+    `radius` and `max_step` of cell (y, x): the gentler of the one over them all and the
+    one over those at or above its height, and the steepest of those two and the one
+    over those at or below it; -inf without any."""
     ny, nx = heights.shape
     hc = heights[y, x]
     none = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -898,8 +910,9 @@ def _fits_at_centres(heights: np.ndarray, radius: int, max_step: float, res: flo
                 if dz == 0.0:
                     level = _with_cell(level, px, py, dz, 1.0)
     over_all = _plane_slope(every, res)
-    return over_all, max(over_all, _plane_slope(_sum(above, level, 1.0), res),
-                         _plane_slope(_sum(every, above, -1.0), res))
+    rising = _plane_slope(_sum(above, level, 1.0), res)
+    return min(over_all, rising), max(over_all, rising,
+                                      _plane_slope(_sum(every, above, -1.0), res))
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -262,10 +262,11 @@ def test_grow_region_matches_a_breadth_first_reference():
                     or not abs(heights[yy, xx] - heights[y, x]) <= 0.05:
                 continue
             between = {(y + round(t * dy), x + round(t * dx)) for t in (0.4, 0.6)}
+            if not spans_no_step(heights, (y, x), (yy, xx)):
+                continue  # a step, a neighbour's or a jump's
             if max(abs(dy), abs(dx)) == 2 and not (
                     all(empty[c] for c in between)
                     and abs(heights[yy, xx] - heights[y, x]) <= 0.02 * math.hypot(dy, dx)
-                    and spans_no_step(heights, (y, x), (yy, xx))
                     and spans_no_step(heights, (yy, xx), (y, x))):
                 continue
             inside[yy, xx] = True

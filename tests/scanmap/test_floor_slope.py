@@ -270,3 +270,34 @@ def test_a_noisy_ramps_thick_cells_take_their_mean_hits_height_for_the_slope(see
     inner = ramp_slopes_through_the_grid(seed, 14.0, 0.005, 36)
     assert (inner < MAX_SLOPE).all()  # False for NaN: no floor
     assert abs(np.median(inner) - math.radians(14.0)) < math.radians(0.1)
+
+
+@pytest.mark.parametrize("degrees", [12.0, 14.0, 14.6])
+def test_a_ramps_side_over_the_floor_a_little_lower_has_the_ramps_slope(degrees):
+    # A ramp rising along x from x = 0, its side along y = 0, the floor beside it and
+    # before it at 0: near its low corner the floor beside lies within a step below its
+    # side cells, and the plane over a side cell's whole window tilts towards it, steeper
+    # than the ramp (ramp rooms: a 14.6 deg ramp's side cells 15-19 deg, not floor); the
+    # plane over the cells at or above the cell (the ramp alone) does not
+    y, x = (np.mgrid[0:16, 0:24] - np.array([5, 5])[:, None, None] + 0.5) * RES
+    rise = math.tan(math.radians(degrees))
+    heights = np.where((x > 0.0) & (y > 0.0), rise * x, 0.0)
+    slope = slope_of(heights)
+    side = (y > 0.0) & (y < 2 * RES) & (x > 0.0) & (rise * x < STEP) & (x < 0.9)
+    assert side.sum() >= 8  # two rows of four cells or more
+    assert np.allclose(slope[side], math.radians(degrees), atol=math.radians(0.05))
+
+
+def test_the_floor_grows_no_staircase_down_a_steps_edge():
+    # A 5.6 cm step down: the upper floor's edge cells, partly over the face, 9 mm low
+    # (too near the floor to bridge the step), each within a step of the floor below
+    # (4.7 cm): grown cell by cell, the floor walked down the two (step room 11: 18 cells
+    # of its lower floor FREE). Every floor cell next to the edge cell lies more than a
+    # step above the floor below, so the edge cell is no way down
+    heights = np.zeros((7, 12), np.float32)
+    heights[:, 5], heights[:, 6:] = -0.009, -0.056
+    seeds = np.zeros((7, 12), bool)
+    seeds[3, 0] = True
+    grown = nk.grow_region(heights, seeds, STEP, np.zeros((7, 12), bool),
+                           math.tan(MAX_SLOPE) * RES, heights)
+    assert grown[:, :6].all() and not grown[:, 6:].any()
