@@ -823,10 +823,10 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     the slope is the steepest of the planes fitted at the centres to the cell's own
     window, to those at or above the cell's height and to those at or below it (taken
     everywhere, the steepest of three noisy fits overshot a 14 deg ramp by 1-2.6 deg, and
-    still the foot of a 14.6 deg one). Each fit at the centres (`_plane_slope`): with fewer than six cells, or all near one line (the foot
-    of a wall, a laser line's arc), the slope along them: a chain of cells each a little
-    lower than the last is steep even where no plane fits it; NaN with fewer than
-    three."""
+    still the foot of a 14.6 deg one). Each fit at the centres (`_plane_slope`): with
+    fewer than six cells, or all near one line (the foot of a wall, a laser line's arc),
+    the slope along them: a chain of cells each a little lower than the last is steep
+    even where no plane fits it; NaN with fewer than three."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
     # Each window's plane where it fits within plane_noise (its variance; NaN elsewhere):
