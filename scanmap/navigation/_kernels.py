@@ -719,10 +719,11 @@ def _can_jump(heights: np.ndarray, candidates: np.ndarray, empty: np.ndarray, ma
 def _spans_no_step(heights: np.ndarray, y: int, x: int, far: float, max_step: float
                    ) -> bool:
     """Whether every cell next to (y, x) within max_step of it is within max_step of the
-    height `far` a jump from (y, x) lands on. A level a step's face leaves in a cell (-3 cm
-    beside the floor at 0) is within a step of both floors, and a jump from it across a
-    gap between the laser's lines would land on the floor below (-6 cm): the jump, not
-    the cells next to each other, would bridge the step (`bridged_steps`)."""
+    height `far` a step or jump from (y, x) lands on. A level a step's face leaves in a
+    cell (-3 cm beside the floor at 0) is within a step of both floors, and a jump from it
+    across a gap between the laser's lines would land on the floor below (-6 cm): the
+    jump, not the cells next to each other, would bridge the step (`bridged_steps`); so
+    would a step from an edge cell 9 mm low onto a floor 4.7 cm below it."""
     ny, nx = heights.shape
     near = heights[y, x]
     for yy in range(max(y - 1, 0), min(y + 2, ny)):
