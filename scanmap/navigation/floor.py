@@ -313,19 +313,6 @@ class Segmentation:
         return tuple(self.state.shape)
 
 
-def _fit_plane(coords: np.ndarray, normal: np.ndarray, offset: float,
-               tolerance: float) -> tuple[int, np.ndarray, float]:
-    """(count, unit normal with z >= 0, offset) of the least-squares plane through the
-    points (coords (3, N)) within `tolerance` of the plane normal . p = offset (all finite
-    points with tolerance inf). The normal is the scatter matrix's least eigenvector: the
-    SVD's last right singular vector at a 3 x 3 cost (the points are centred, so squaring
-    the condition number costs nothing on surfaces metres wide with mm noise)."""
-    count, centre, scatter = nk.plane_moments(coords, normal, offset, tolerance)
-    normal = np.linalg.eigh(scatter)[1][:, 0]
-    normal = -normal if normal[2] < 0 else normal
-    return count, normal, float(normal @ centre)
-
-
 def ransac_plane(points: np.ndarray, params: FloorConfig,
                  rng: np.random.Generator) -> tuple[np.ndarray, float, np.ndarray] | None:
     """The near-horizontal plane with most inliers (refined by least squares), or None."""
@@ -337,16 +324,11 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     if not len(normals):
         return None
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
-    # take: C order (coords[:, idx] is in Fortran order, its rows strided, which the kernel
-    # reads several times slower than contiguous ones)
-    subset = coords.take(rng.integers(0, len(points), min(len(points), 4000)), axis=1)
-    support = nk.plane_support(subset, anchors, normals, params.plane_tolerance)
-    best = int(np.argmax(support))
-    normal, offset = normals[best], float(normals[best] @ anchors[best])
-    for _ in range(2):  # refine on all inliers
-        count, normal, offset = _fit_plane(coords, normal, offset, params.plane_tolerance)
-        if count < 3:
-            return None
+    sample = rng.integers(0, len(points), min(len(points), 4000))
+    count, normal, offset = nk.best_plane(coords, sample, anchors, normals,
+                                          params.plane_tolerance, 2)  # refine on all inliers
+    if count < 3:
+        return None
     if normal[2] < math.cos(params.max_slope):
         return None
     return normal, offset, np.abs(points @ normal - offset) <= params.plane_tolerance

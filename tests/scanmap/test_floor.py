@@ -20,7 +20,6 @@ from scanmap.navigation.floor import (
     OBSTACLE,
     FloorConfig,
     RobotShape,
-    _fit_plane,
     ransac_plane,
     segment,
 )
@@ -93,15 +92,24 @@ def test_level_hypotheses_are_numpys_cross_products(seed):
     assert np.array_equal(anchors, sample[ok][level, 0])
 
 
-def test_plane_support_matches_its_numpy_reference():
-    rng = np.random.default_rng(5)
-    points = rng.normal(0.0, 0.05, (700, 3))
-    anchors = points[rng.integers(0, 700, 40)]
-    normals = rng.normal(0.0, 1.0, (40, 3))
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.sampled_from([1, 255, 256, 257, 1300]),
+       floor_share=st.floats(0.0, 1.0), copies=st.integers(1, 3))
+def test_the_most_supported_hypothesis_is_the_first_argmax_of_the_support(seed, n, floor_share,
+                                                                          copies):
+    """`_most_supported` (hypotheses left early) picks what argmax over the plain support
+    picks, the first of equals: hypotheses repeated (ties), the floor from none of the
+    points to all, and point counts round the block size."""
+    rng = np.random.default_rng(seed)
+    points = np.column_stack([rng.uniform(-3.0, 3.0, (n, 2)), rng.normal(0.0, 0.005, n)])
+    off = rng.random(n) >= floor_share
+    points[off, 2] += rng.uniform(0.1, 1.0, int(off.sum()))
+    normals = np.tile(rng.normal([0.0, 0.0, 5.0], 1.0, (30, 3)), (copies, 1))
     normals /= np.linalg.norm(normals, axis=1)[:, None]
-    got = nk.plane_support(np.ascontiguousarray(points.T), anchors, normals, 0.03)
-    assert (got == nk.plane_support_reference(points, anchors, normals, 0.03)).all()
-    assert got.min() < got.max() <= 700
+    anchors = np.tile(points[rng.integers(0, n, 30)], (copies, 1))
+    support = nk.plane_support_reference(points, anchors, normals, 0.02)
+    chosen = nk._most_supported(np.ascontiguousarray(points.T), anchors, normals, 0.02)
+    assert chosen == int(np.argmax(support))
 
 
 def test_small_holes_take_patches_inside_level_floor_only():
@@ -465,14 +473,17 @@ def test_robot_shape_rejects_nonsense(kwargs):
 @given(tilt=st.floats(0.0, 1.2), azimuth=st.floats(0.0, 6.3), far=st.sampled_from([0.0, 1e5]),
        noise=st.sampled_from([0.0, 1e-3, 0.02]), seed=st.integers(0, 2**31 - 1))
 def test_the_plane_fit_is_the_svd_least_squares_plane(tilt, azimuth, far, noise, seed):
-    """The scatter-matrix fit against the plain SVD of the centred points, near the origin
-    and 100 km from it, with no noise to a 2 cm spread."""
+    """The scatter-matrix fit (`best_plane`'s refinement) against the plain SVD of the
+    centred points, near the origin and 100 km from it, with no noise to a 2 cm spread."""
     rng = np.random.default_rng(seed)
     xy = rng.uniform(-2.0, 2.0, (400, 2)) + far
     slope = math.tan(tilt) * np.array([math.cos(azimuth), math.sin(azimuth)])
     z = 0.3 + (xy - far) @ slope + rng.normal(0.0, noise, 400)
     p = np.column_stack([xy, z])
-    _, normal, offset = _fit_plane(np.ascontiguousarray(p.T), np.zeros(3), 0.0, np.inf)
+    any_plane = np.array([[0.0, 0.0, 1.0]])  # every point is within inf of it
+    count, normal, offset = nk.best_plane(np.ascontiguousarray(p.T), np.arange(400),
+                                          any_plane, any_plane, np.inf, 1)
+    assert count == 400
     centre = p.mean(axis=0)
     reference = np.linalg.svd(p - centre, full_matrices=False)[2][-1]
     reference = -reference if reference[2] < 0 else reference
