@@ -109,6 +109,7 @@ from scanmap_driver.sim.scene import Scene, builtin_scene, resolve_scene
 from scanmap_driver.sim.simulate import simulate_recording
 
 ROBOT = RobotShape()
+MODEL = reference_scanner()  # built once, as a Mapper builds its model (0.4 ms a build)
 PARAMS = FloorConfig()
 MARGIN = 0.5  # m of window around the scene's bounds
 WINDOW = 8.0  # m, side of the window segmented per scan for the timing
@@ -148,10 +149,9 @@ def scene_window(scene: Scene) -> tuple[float, float, float, float]:
 
 def fuse(grid: HeightGrid, ideal: IdealScan) -> None:
     """Insert one ideal scan at its true frame poses, with the floor it saw unlit."""
-    model = reference_scanner()
-    points, origins = scan_rays(ideal.scan, model, ideal.frame_poses)
+    points, origins = scan_rays(ideal.scan, MODEL, ideal.frame_poses)
     grid.insert(points, origins, float(ideal.scan.time.max()),
-                unlit=unlit_floor(ideal.scan, model, ideal.frame_poses))
+                unlit=unlit_floor(ideal.scan, MODEL, ideal.frame_poses))
 
 
 def mapped(scene: Scene, scans: int | None = None, seed: int = 0,
@@ -423,7 +423,7 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
                 eroded += int((fair & ~obstacle).sum())
                 freed += int((fair & (step.seg.state == FREE)).sum())
                 deep += int((fair & cut_deep & ~obstacle).sum())
-                crossed_since |= band_crossed(*scan_rays(step.ideal.scan, reference_scanner(),
+                crossed_since |= band_crossed(*scan_rays(step.ideal.scan, MODEL,
                                                          step.ideal.frame_poses), step.seg)
                 crossed_since[covered[step.index]] = 0
                 left = step.index - linger
