@@ -221,17 +221,21 @@ _SUPPORT_BLOCK = 256  # points `_most_supported` counts between its checks
 
 @njit(cache=True, nogil=True)
 def _most_supported(coords: np.ndarray, anchors: np.ndarray, normals: np.ndarray,
-                    tolerance: float) -> int:
+                    tolerance: float, confidence: float = 1.0) -> int:
     """RANSAC's score: the index of the hypothesis (a point on it and its unit normal)
     with most points within `tolerance` (the first of equals; `plane_support_reference`
     counts them plainly). coords: (3, N) the points' x, y and z as rows, so that the
     inner loop runs over contiguous arrays and vectorises (four times the speed of
     (N, 3) rows). Each hypothesis is counted in blocks and left once the points left
     could not lift it above the best so far: a hypothesis far off a floor that fills
-    the window is left after a quarter of the points or so."""
+    the window is left after a quarter of the points or so. Below a `confidence` of 1,
+    the hypotheses after the first k are not counted once k draws would have drawn
+    three points of the best plane so far at that confidence (the RANSAC bound, k =
+    log(1 - confidence) / log(1 - share ** 3), the share of the points on it): the
+    hypotheses are random draws, so the later ones are no likelier to be better."""
     xs, ys, zs = coords[0], coords[1], coords[2]
     n = xs.shape[0]
-    best, best_count = 0, -1
+    best, best_count, needed = 0, -1, np.inf
     for h in range(normals.shape[0]):
         n0, n1, n2 = normals[h, 0], normals[h, 1], normals[h, 2]
         offset = n0 * anchors[h, 0] + n1 * anchors[h, 1] + n2 * anchors[h, 2]
@@ -246,16 +250,23 @@ def _most_supported(coords: np.ndarray, anchors: np.ndarray, normals: np.ndarray
                 count += abs(n0 * bx[i] + n1 * by[i] + n2 * bz[i] - offset) <= tolerance
         if count > best_count:
             best, best_count = h, count
+            share = best_count / n
+            if confidence < 1.0 and share > 0.0:  # draws that find a triple on the best
+                # plane at that confidence (fewer, the more of the points it holds)
+                needed = 0.0 if share >= 1.0 else math.log1p(-confidence) / math.log1p(
+                    -share ** 3)
+        if h + 1 >= needed:
+            break
     return best
 
 
 @njit(cache=True, nogil=True)
 def best_plane(coords: np.ndarray, sample: np.ndarray, anchors: np.ndarray,
-               normals: np.ndarray, tolerance: float, rounds: int
+               normals: np.ndarray, tolerance: float, confidence: float, rounds: int
                ) -> tuple[int, np.ndarray, float]:
     """RANSAC's choice, refined: the hypothesis (a point on it and its unit normal) with
     most of the points `sample` (indices into coords (3, N)) within `tolerance`
-    (`_most_supported`), then `rounds` least-squares fits, each on
+    (`_most_supported`, drawn to `confidence`), then `rounds` least-squares fits, each on
     every point within tolerance of the plane before (`plane_moments`; the normal is the
     scatter's least eigenvector, z >= 0). Returns (the fewest points a fit had, unit
     normal, offset); in one call, where numpy's gather, eigh and products cost more than
@@ -264,7 +275,7 @@ def best_plane(coords: np.ndarray, sample: np.ndarray, anchors: np.ndarray,
     for r in range(3):
         for j in range(sample.shape[0]):
             subset[r, j] = coords[r, sample[j]]
-    best = _most_supported(subset, anchors, normals, tolerance)
+    best = _most_supported(subset, anchors, normals, tolerance, confidence)
     normal = normals[best].copy()
     offset = np.dot(normal, anchors[best])
     fewest = coords.shape[1]

@@ -137,6 +137,11 @@ from scanmap.navigation._kernels import UNKNOWN as UNKNOWN
 from scanmap.navigation.distance_field import distance_transform
 from scanmap_driver.errors import MapError
 
+# RANSAC counts no more hypotheses once, at this confidence, one of those drawn was three
+# cells of the best plane so far (`ransac_iterations` at most): 16 when that plane holds
+# 90 % of the candidates, 86 at 60 %, all 200 below 46.5 %
+RANSAC_CONFIDENCE = 1.0 - 1e-9
+
 
 @dataclass(frozen=True)
 class RobotShape:
@@ -326,7 +331,7 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
     sample = rng.integers(0, len(points), min(len(points), 4000))
     count, normal, offset = nk.best_plane(coords, sample, anchors, normals,
-                                          params.plane_tolerance, 2)  # refine on all inliers
+                                          params.plane_tolerance, RANSAC_CONFIDENCE, 2)
     if count < 3:
         return None
     if normal[2] < math.cos(params.max_slope):

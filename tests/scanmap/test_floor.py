@@ -112,6 +112,24 @@ def test_the_most_supported_hypothesis_is_the_first_argmax_of_the_support(seed, 
     assert chosen == int(np.argmax(support))
 
 
+@pytest.mark.parametrize(("better_at", "confidence", "chosen"), [
+    (100, 1.0, 100), (20, 1.0 - 1e-9, 20), (30, 1.0 - 1e-9, 0), (30, 1.0 - 1e-12, 30),
+    (100, 1.0 - 1e-12, 0)])
+def test_ransac_stops_drawing_once_the_best_plane_was_surely_drawn(better_at, confidence,
+                                                                  chosen):
+    """Hypothesis 0 holds 80 % of the points, a later one all: at a confidence of 1 - 1e-9
+    one triple of the 80 % would have been drawn within 29 draws (1 - 0.8 ** 3 per
+    draw), so the later one counts only within them; at 1 - 1e-12, within 38."""
+    points = np.zeros((3, 1000))
+    points[0], points[1] = np.random.default_rng(2).uniform(-3.0, 3.0, (2, 1000))
+    points[2, 800:] = 0.015
+    normals = np.tile([0.0, 0.0, 1.0], (200, 1))
+    anchors = np.zeros((200, 3))
+    anchors[:, 2] = 0.5  # no points on them
+    anchors[0, 2], anchors[better_at, 2] = -0.005, 0.0075  # 800 points, and all 1000
+    assert nk._most_supported(points, anchors, normals, 0.01, confidence) == chosen
+
+
 def test_small_holes_take_patches_inside_level_floor_only():
     """A 2 x 2 patch inside level floor is a hole; the same beside a step, touching the
     window's edge, larger than the size, holding a hit or a drop-off is not."""
@@ -482,7 +500,7 @@ def test_the_plane_fit_is_the_svd_least_squares_plane(tilt, azimuth, far, noise,
     p = np.column_stack([xy, z])
     any_plane = np.array([[0.0, 0.0, 1.0]])  # every point is within inf of it
     count, normal, offset = nk.best_plane(np.ascontiguousarray(p.T), np.arange(400),
-                                          any_plane, any_plane, np.inf, 1)
+                                          any_plane, any_plane, np.inf, 1.0, 1)
     assert count == 400
     centre = p.mean(axis=0)
     reference = np.linalg.svd(p - centre, full_matrices=False)[2][-1]
