@@ -1139,6 +1139,30 @@ def footprint_cells(stood: np.ndarray, xs: np.ndarray, ys: np.ndarray, origin_x:
 
 
 @njit(cache=True, nogil=True)
+def observed_span(nlev: np.ndarray, seen: np.ndarray, stood: np.ndarray, origin_x: float,
+                  origin_y: float, res: float) -> tuple[int, int, int, int]:
+    """First and last row and column of the cells with a level or with heights rays saw,
+    and of those holding a place the robot stood (`stood` (M, 2) x, y; beyond the window
+    none): (-1, -1, -1, -1) without any (`floor._observed_box`, in one pass)."""
+    ny, nx = nlev.shape
+    top, bottom, left, right = ny, -1, nx, -1
+    for y in range(ny):
+        for x in range(nx):
+            if nlev[y, x] > 0 or seen[y, x] != 0:
+                top, bottom = min(top, y), max(bottom, y)
+                left, right = min(left, x), max(right, x)
+    for i in range(stood.shape[0]):
+        x = int(np.floor((stood[i, 0] - origin_x) / res))
+        y = int(np.floor((stood[i, 1] - origin_y) / res))
+        if 0 <= x < nx and 0 <= y < ny:
+            top, bottom = min(top, y), max(bottom, y)
+            left, right = min(left, x), max(right, x)
+    if bottom < 0:
+        return -1, -1, -1, -1
+    return top, bottom, left, right
+
+
+@njit(cache=True, nogil=True)
 def lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:
     """Bottom height (m) of the lowest height bin rays saw free in each cell; -inf where
     none was (such a cell counts as probed, and cannot be FREE: its band is unseen)."""

@@ -372,6 +372,9 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     """
     robot = robot or RobotShape()
     params = params or FloorConfig()
+    if fallback_floor is not None and not math.isfinite(fallback_floor):
+        raise MapError(f"segment: fallback_floor must be a finite height or None, got "
+                       f"{fallback_floor}")
     rows, cols = _observed_box(layers, robot, _reach(params, layers.resolution))
     ny, nx = layers.shape
     area = (rows.stop - rows.start) * (cols.stop - cols.start)
@@ -414,13 +417,14 @@ def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[sl
     rays saw, and every place the robot stood, grown by `reach` cells (within the window;
     empty when nothing was observed)."""
     ny, nx = layers.shape
-    observed = (layers.nlev > 0) | (layers.seen != 0) | _stood_cells(layers)
-    rows, cols = np.flatnonzero(observed.any(axis=1)), np.flatnonzero(observed.any(axis=0))
-    if not len(rows):
+    top, bottom, left, right = nk.observed_span(
+        layers.nlev, layers.seen, np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2),
+        layers.origin[0], layers.origin[1], layers.resolution)
+    if bottom < 0:
         return slice(0, 0), slice(0, 0)
     reach += math.ceil(robot.radius / layers.resolution)  # the footprint round a place
-    return (slice(max(rows[0] - reach, 0), min(rows[-1] + reach + 1, ny)),
-            slice(max(cols[0] - reach, 0), min(cols[-1] + reach + 1, nx)))
+    return (slice(max(top - reach, 0), min(bottom + reach + 1, ny)),
+            slice(max(left - reach, 0), min(right + reach + 1, nx)))
 
 
 def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
@@ -503,7 +507,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     stood = _footprint_cells(layers, robot.radius)  # observed floor or not: it stood there
     edges &= ~stood
     # Below the lowest floor near the cell (a cell between two floors at a step is neither's)
-    lowest = morphology.min_filter(np.nan_to_num(floor_height, nan=np.inf), 5)
+    lowest = morphology.min_filter(np.where(np.isnan(floor_height), np.inf, floor_height), 5)
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
     drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
                           robot.step_height, layers.z_min, layers.mask_dz,
@@ -730,8 +734,10 @@ def _ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
 def _between(mask: np.ndarray) -> np.ndarray:
     """Cells with a cell of `mask` on both sides of them in their row or in their
     column."""
-    padded = np.pad(mask, 1)
-    return (padded[1:-1, :-2] & padded[1:-1, 2:]) | (padded[:-2, 1:-1] & padded[2:, 1:-1])
+    out = np.zeros(mask.shape, bool)
+    np.logical_and(mask[:, :-2], mask[:, 2:], out=out[:, 1:-1])
+    out[1:-1] |= mask[:-2] & mask[2:]
+    return out
 
 
 def _stood_floor(lowest: np.ndarray, floor_height: np.ndarray, nearest: np.ndarray

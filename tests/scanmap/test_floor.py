@@ -436,6 +436,48 @@ def test_a_2d_laser_map_needs_an_assumed_floor():
     assert (seg.state[(r > 0.5) & (r < 1.8)] == FREE).mean() > 0.9
 
 
+@settings(max_examples=60, deadline=None)
+@given(ny=st.integers(1, 7), nx=st.integers(1, 7), share=st.sampled_from([0.0, 0.05, 0.5]),
+       places=st.integers(0, 3), seed=st.integers(0, 2**31 - 1))
+def test_the_observed_span_bounds_the_observed_cells_and_the_places_stood(ny, nx, share,
+                                                                          places, seed):
+    """`observed_span` against numpy: cells with a level or seen heights, and places the
+    robot stood inside the window (not those beyond it); none at all gives -1s."""
+    rng = np.random.default_rng(seed)
+    nlev = (rng.random((ny, nx)) < share).astype(np.uint8)
+    seen = np.where(rng.random((ny, nx)) < share, np.uint64(8), np.uint64(0))
+    stood = rng.uniform(-0.1, 0.1 + 0.05 * max(nx, ny), (places, 2))  # some beyond it
+    observed = (nlev > 0) | (seen != 0)
+    cols, rows = np.floor(stood / 0.05).astype(int).T
+    inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
+    observed[rows[inside], cols[inside]] = True
+    r, c = np.flatnonzero(observed.any(axis=1)), np.flatnonzero(observed.any(axis=0))
+    want = (r[0], r[-1], c[0], c[-1]) if len(r) else (-1, -1, -1, -1)
+    assert nk.observed_span(nlev, seen, stood, 0.0, 0.0, 0.05) == want
+
+
+@settings(max_examples=60, deadline=None)
+@given(ny=st.integers(1, 6), nx=st.integers(1, 6), seed=st.integers(0, 2**31 - 1))
+def test_between_takes_cells_with_the_mask_on_both_sides_in_a_row_or_column(ny, nx, seed):
+    """`_between` against its definition, cell by cell, on grids down to one cell."""
+    mask = np.random.default_rng(seed).random((ny, nx)) < 0.5
+    want = np.zeros((ny, nx), bool)
+    for y in range(ny):
+        for x in range(nx):
+            want[y, x] = (0 < x < nx - 1 and mask[y, x - 1] and mask[y, x + 1]) or (
+                0 < y < ny - 1 and mask[y - 1, x] and mask[y + 1, x])
+    assert np.array_equal(floor_module._between(mask), want)
+
+
+@pytest.mark.parametrize("height", [math.nan, math.inf, -math.inf])
+def test_a_fallback_floor_that_is_no_height_is_refused(height):
+    """NaN or inf as the assumed floor: a clear error naming it, not a map of it."""
+    grid = HeightGrid(GridConfig(extent=10.0))
+    grid.insert(np.array([[1.0, 0.0, 0.3]]), np.array([0.0, 0.0, 0.3]), 0.0)
+    with pytest.raises(MapError, match="fallback_floor"):
+        segment(grid.layers((-1.0, -1.0, 1.5, 1.0)), fallback_floor=height)
+
+
 def assert_same_segmentation(got, want) -> None:
     """The same cells, states and planes; heights and points to rounding (a window's cell
     centres computed from another origin)."""
