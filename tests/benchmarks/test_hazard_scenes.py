@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import json
 
-from benchmarks.bench_hazards import main
+import numpy as np
+
+from benchmarks.bench_hazards import _thinned, main
+from scanmap_driver.sim.ideal import ideal_scans
 from scanmap_driver.sim.scene import builtin_scene
 
 
@@ -37,3 +40,19 @@ def test_a_rendered_room_mapped_by_the_whole_pipeline_frees_no_drop_off(capsys):
     assert worst["drop_free"] == 0 and worst["drop_recall"] > 0.8
     assert room["edge_error_cells"] <= 2.0 and room["edge_within_one"] > 0.9
     assert worst["obstacle_f1"] > 0.9 and room["ate_m"] < 0.02
+
+
+def test_a_scan_thinned_for_the_timing_keeps_whole_frames_evenly():
+    """The timing's 20,000-point scan: whole frames kept (every point of a kept frame,
+    none of another), spread over the turn, about the points asked for."""
+    ideal = next(ideal_scans(builtin_scene("corridor"), scans=1))
+    thin = _thinned(ideal, 20_000)
+    frames = np.unique(ideal.scan.frame_index)
+    kept = np.unique(thin.scan.frame_index)
+    assert abs(len(thin.scan) - 20_000) < 2 * len(ideal.scan) / len(frames)  # two frames
+    for frame in frames:
+        count = int((thin.scan.frame_index == frame).sum())
+        assert count in (0, int((ideal.scan.frame_index == frame).sum()))
+    assert np.diff(np.flatnonzero(np.isin(frames, kept))).max() <= 2  # none skipped twice
+    assert len(thin.true_points) == len(thin.scan)
+    assert _thinned(ideal, 10**9).scan.points.shape == ideal.scan.points.shape
