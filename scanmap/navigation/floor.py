@@ -320,7 +320,8 @@ class Segmentation:
 
 def ransac_plane(points: np.ndarray, params: FloorConfig,
                  rng: np.random.Generator) -> tuple[np.ndarray, float, np.ndarray] | None:
-    """The near-horizontal plane with most inliers (refined by least squares), or None."""
+    """The near-horizontal plane with most inliers among `ransac_iterations` hypotheses
+    (fewer once RANSAC_CONFIDENCE is reached), refined by least squares; or None."""
     if len(points) < 3:
         return None
     triples = rng.integers(0, len(points), (params.ransac_iterations, 3))
