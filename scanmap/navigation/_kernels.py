@@ -863,7 +863,15 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     from the side of an edge it is on, the first rows of a steep ramp take a window on
     the ramp alone (the plane over a window that takes in the floor before it, bent
     within the noise, gave a 16 deg ramp's first 10 cm 11-15 deg), and the floor before
-    it a window on the floor. Where the cell's own window fits no plane (bent by a
+    it a window on the floor. Its slope is then that of the mean gradient of the windows
+    that agree with that best one (their gradients within 3 standard deviations of their
+    difference, AGREE), each weighted by the inverse of its gradient's variance (the
+    plane's residual variance over the spread of its cells across their principal
+    line): on a plane all nine agree, and their mean is half as noisy as one (a 14.7 deg
+    ramp's inner cells at 0.3 px of laser peak noise: 0.20 -> 0.09 deg standard
+    deviation; 5 of 185 came out over max_slope, fresh ramp room 501's F1 0.963), while
+    at an edge the windows over both sides disagree with the best by far more than their
+    noise and are left out. Where the cell's own window fits no plane (bent by a
     crease or a step's face, or too few cells for one), the cell is no gentler
     than the gentler of the planes fitted at the centres over that whole window and over
     its cells at or above the cell's height: beside a turned step's face, whose cells lie
@@ -885,9 +893,10 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
     # Each window's plane where it fits within plane_noise (its variance; NaN elsewhere):
-    # its gradient and its height at the centre's hit above the centre's height
+    # its gradient, its height at the centre's hit above the centre's height and the
+    # gradient's variance along the direction its cells spread least
     variances = np.full((ny, nx), np.nan, np.float32)
-    plane = np.empty((ny, nx, 3), np.float32)
+    plane = np.empty((ny, nx, 4), np.float32)
     none = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for y in range(ny):
         for x in range(nx):
@@ -911,27 +920,46 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                     plane[y, x, 0], plane[y, x, 1] = gx, gy
                     plane[y, x, 2] = (at_hits[3] - gx * at_hits[1] - gy * at_hits[2]) / n
                     variances[y, x] = rms * rms * n / (n - 3.0)  # unbiased
+                    plane[y, x, 3] = variances[y, x] / _least_spread(at_hits)
     tolerance = 2.0 * plane_noise
+    # the fitting windows round a cell: gradient and its variance (`plane[..., 3]`)
+    slopes_x, slopes_y, spreads = np.empty(9), np.empty(9), np.empty(9)
+    chosen = 0
     for y in range(ny):
         for x in range(nx):
             hc = heights[y, x]
             if np.isnan(hc):
                 continue
-            best, slope = np.inf, -np.inf
+            best, slope, fits = np.inf, -np.inf, 0
             for yy in range(y - radius, y + radius + 1, radius):
                 for xx in range(x - radius, x + radius + 1, radius):
                     if not (0 <= yy < ny and 0 <= xx < nx):
                         continue
                     variance = variances[yy, xx]
-                    if not variance < best or abs(heights[yy, xx] - hc) > max_step:
-                        continue  # no plane, a worse one, or the cell is not in its window
+                    if np.isnan(variance) or abs(heights[yy, xx] - hc) > max_step:
+                        continue  # no plane, or the cell is not in its window
                     gx, gy = plane[yy, xx, 0], plane[yy, xx, 1]
                     residual = heights[yy, xx] + plane[yy, xx, 2] - hc \
                         + gx * ((x - xx) * res + offsets[y, x, 0] - offsets[yy, xx, 0]) \
                         + gy * ((y - yy) * res + offsets[y, x, 1] - offsets[yy, xx, 1])
                     score = variance + residual * residual
-                    if abs(residual) <= tolerance and score < best:
-                        best, slope = score, math.atan(math.hypot(gx, gy))
+                    if abs(residual) <= tolerance:
+                        slopes_x[fits], slopes_y[fits] = gx, gy
+                        spreads[fits] = plane[yy, xx, 3]
+                        if score < best:
+                            best, chosen = score, fits
+                        fits += 1
+            if fits:
+                bx, by, bv = slopes_x[chosen], slopes_y[chosen], spreads[chosen]
+                weight = sx = sy = 0.0
+                for i in range(fits):
+                    dx, dy = slopes_x[i] - bx, slopes_y[i] - by
+                    if dx * dx + dy * dy <= AGREE * (spreads[i] + bv):
+                        w = 1.0 / (spreads[i] + 1e-18)
+                        weight += w
+                        sx += w * slopes_x[i]
+                        sy += w * slopes_y[i]
+                slope = math.atan(math.hypot(sx / weight, sy / weight))
             if best == np.inf or np.isnan(variances[y, x]):  # its own window fits none
                 gentler, steepest = _fits_at_centres(heights, radius, max_step, res, y, x)
                 slope = steepest if best == np.inf else max(slope, gentler)
@@ -988,6 +1016,7 @@ def _sum(a: tuple, b: tuple, sign: float) -> tuple:
             a[8] + sign * b[8])
 
 
+AGREE = 9.0  # `local_slope`: gradients agree within 3 standard deviations (squared)
 PLANE_SPREAD = 0.2  # cells: the least RMS spread of a plane fit's points across their line
 
 
@@ -1003,11 +1032,19 @@ def _gradient(s: tuple, res: float) -> tuple[float, float]:
     cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
     cxz, cyz = sxz - sx * sz / n, syz - sy * sz / n
     det = cxx * cyy - cxy * cxy
-    half = 0.5 * (cxx + cyy)
-    across = half - math.sqrt(max(half * half - det, 0.0))  # n x the least variance
-    if n < 6 or not across > n * (PLANE_SPREAD * res) ** 2:
+    if n < 6 or not _least_spread(s) > n * (PLANE_SPREAD * res) ** 2:
         return np.nan, np.nan
     return (cyy * cxz - cxy * cyz) / det, (cxx * cyz - cxy * cxz) / det
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _least_spread(s: tuple) -> float:
+    """n x the least variance of the positions of the cells summed in `s` (`_with_cell`):
+    the scatter across their principal line (m^2)."""
+    n, sx, sy, _, sxx, sxy, syy, _, _ = s
+    cxx, cxy, cyy = sxx - sx * sx / n, sxy - sx * sy / n, syy - sy * sy / n
+    half = 0.5 * (cxx + cyy)
+    return half - math.sqrt(max(half * half - (cxx * cyy - cxy * cxy), 0.0))
 
 
 @njit(cache=True, nogil=True, inline="always")
