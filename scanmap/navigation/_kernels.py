@@ -949,7 +949,7 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                         if score < best:
                             best, chosen = score, fits
                         fits += 1
-            if fits:
+            if best < np.inf:  # the best window agrees with itself: weight > 0
                 bx, by, bv = slopes_x[chosen], slopes_y[chosen], spreads[chosen]
                 weight = sx = sy = 0.0
                 for i in range(fits):
