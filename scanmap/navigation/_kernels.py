@@ -923,7 +923,7 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                     plane[y, x, 3] = variances[y, x] / _least_spread(at_hits)
     tolerance = 2.0 * plane_noise
     # the fitting windows round a cell: gradient and its variance (`plane[..., 3]`)
-    slopes_x, slopes_y, spreads = np.empty(9), np.empty(9), np.empty(9)
+    slopes_x, slopes_y, slope_variances = np.empty(9), np.empty(9), np.empty(9)
     chosen = 0
     for y in range(ny):
         for x in range(nx):
@@ -945,17 +945,17 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                     score = variance + residual * residual
                     if abs(residual) <= tolerance:
                         slopes_x[fits], slopes_y[fits] = gx, gy
-                        spreads[fits] = plane[yy, xx, 3]
+                        slope_variances[fits] = plane[yy, xx, 3]
                         if score < best:
                             best, chosen = score, fits
                         fits += 1
             if best < np.inf:  # the best window agrees with itself: weight > 0
-                bx, by, bv = slopes_x[chosen], slopes_y[chosen], spreads[chosen]
+                bx, by, bv = slopes_x[chosen], slopes_y[chosen], slope_variances[chosen]
                 weight = sx = sy = 0.0
                 for i in range(fits):
                     dx, dy = slopes_x[i] - bx, slopes_y[i] - by
-                    if dx * dx + dy * dy <= AGREE * (spreads[i] + bv):
-                        w = 1.0 / (spreads[i] + 1e-18)
+                    if dx * dx + dy * dy <= AGREE * (slope_variances[i] + bv):
+                        w = 1.0 / (slope_variances[i] + 1e-18)
                         weight += w
                         sx += w * slopes_x[i]
                         sy += w * slopes_y[i]
@@ -1176,11 +1176,9 @@ def footprint_cells(stood: np.ndarray, xs: np.ndarray, ys: np.ndarray, origin_x:
 
 
 @njit(cache=True, nogil=True)
-def observed_span(nlev: np.ndarray, seen: np.ndarray, stood: np.ndarray, origin_x: float,
-                  origin_y: float, res: float) -> tuple[int, int, int, int]:
+def observed_span(nlev: np.ndarray, seen: np.ndarray) -> tuple[int, int, int, int]:
     """First and last row and column of the cells with a level or with heights rays saw,
-    and of those holding a place the robot stood (`stood` (M, 2) x, y; beyond the window
-    none): (-1, -1, -1, -1) without any (`floor._observed_box`, in one pass)."""
+    (-1, -1, -1, -1) without any (`floor._observed_box`, in one pass)."""
     ny, nx = nlev.shape
     top, bottom, left, right = ny, -1, nx, -1
     for y in range(ny):
@@ -1188,12 +1186,6 @@ def observed_span(nlev: np.ndarray, seen: np.ndarray, stood: np.ndarray, origin_
             if nlev[y, x] > 0 or seen[y, x] != 0:
                 top, bottom = min(top, y), max(bottom, y)
                 left, right = min(left, x), max(right, x)
-    for i in range(stood.shape[0]):
-        x = int(np.floor((stood[i, 0] - origin_x) / res))
-        y = int(np.floor((stood[i, 1] - origin_y) / res))
-        if 0 <= x < nx and 0 <= y < ny:
-            top, bottom = min(top, y), max(bottom, y)
-            left, right = min(left, x), max(right, x)
     if bottom < 0:
         return -1, -1, -1, -1
     return top, bottom, left, right

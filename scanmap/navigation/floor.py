@@ -418,14 +418,15 @@ def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[sl
     rays saw, and every place the robot stood, grown by `reach` cells (within the window;
     empty when nothing was observed)."""
     ny, nx = layers.shape
-    top, bottom, left, right = nk.observed_span(
-        layers.nlev, layers.seen, np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2),
-        layers.origin[0], layers.origin[1], layers.resolution)
-    if bottom < 0:
+    top, bottom, left, right = nk.observed_span(layers.nlev, layers.seen)
+    rows, cols = _stood_rows_cols(layers)
+    if bottom >= 0:  # the observed cells' bounds, with the places stood
+        rows, cols = np.append(rows, (top, bottom)), np.append(cols, (left, right))
+    if not len(rows):
         return slice(0, 0), slice(0, 0)
     reach += math.ceil(robot.radius / layers.resolution)  # the footprint round a place
-    return (slice(max(top - reach, 0), min(bottom + reach + 1, ny)),
-            slice(max(left - reach, 0), min(right + reach + 1, nx)))
+    return (slice(max(rows.min() - reach, 0), min(rows.max() + reach + 1, ny)),
+            slice(max(cols.min() - reach, 0), min(cols.max() + reach + 1, nx)))
 
 
 def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
@@ -752,15 +753,21 @@ def _stood_floor(lowest: np.ndarray, floor_height: np.ndarray, nearest: np.ndarr
     return np.fmin(lowest, floor_height.reshape(-1)[nearest]).astype(np.float32)
 
 
-def _stood_cells(layers: CellLayers) -> np.ndarray:
-    """The cells of the window that hold a place the robot stood (`layers.stood`)."""
+def _stood_rows_cols(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the window's cells that hold a place the robot stood
+    (`layers.stood`; places beyond the window left out)."""
     ny, nx = layers.shape
     stood = np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2)
     cols = np.floor((stood[:, 0] - layers.origin[0]) / layers.resolution).astype(np.int64)
     rows = np.floor((stood[:, 1] - layers.origin[1]) / layers.resolution).astype(np.int64)
     inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
-    cells = np.zeros((ny, nx), bool)
-    cells[rows[inside], cols[inside]] = True
+    return rows[inside], cols[inside]
+
+
+def _stood_cells(layers: CellLayers) -> np.ndarray:
+    """The cells of the window that hold a place the robot stood (`layers.stood`)."""
+    cells = np.zeros(layers.shape, bool)
+    cells[_stood_rows_cols(layers)] = True
     return cells
 
 

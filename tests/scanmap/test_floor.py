@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy import ndimage
 
 from scanmap.grid import _kernels as gk
-from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.navigation import _kernels as nk
 from scanmap.navigation import floor as floor_module
 from scanmap.navigation.floor import (
@@ -439,10 +439,11 @@ def test_a_2d_laser_map_needs_an_assumed_floor():
 @settings(max_examples=60, deadline=None)
 @given(ny=st.integers(1, 7), nx=st.integers(1, 7), share=st.sampled_from([0.0, 0.05, 0.5]),
        places=st.integers(0, 3), seed=st.integers(0, 2**31 - 1))
-def test_the_observed_span_bounds_the_observed_cells_and_the_places_stood(ny, nx, share,
-                                                                          places, seed):
-    """`observed_span` against numpy: cells with a level or seen heights, and places the
-    robot stood inside the window (not those beyond it); none at all gives -1s."""
+def test_the_observed_box_bounds_the_observed_cells_and_the_places_stood(ny, nx, share,
+                                                                         places, seed):
+    """`_observed_box` (`observed_span` and the places stood) against numpy: cells with a
+    level or seen heights, and places the robot stood inside the window (not those beyond
+    it), grown by the reach and the footprint; none at all gives an empty box."""
     rng = np.random.default_rng(seed)
     nlev = (rng.random((ny, nx)) < share).astype(np.uint8)
     seen = np.where(rng.random((ny, nx)) < share, np.uint64(8), np.uint64(0))
@@ -452,8 +453,15 @@ def test_the_observed_span_bounds_the_observed_cells_and_the_places_stood(ny, nx
     inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
     observed[rows[inside], cols[inside]] = True
     r, c = np.flatnonzero(observed.any(axis=1)), np.flatnonzero(observed.any(axis=0))
-    want = (r[0], r[-1], c[0], c[-1]) if len(r) else (-1, -1, -1, -1)
-    assert nk.observed_span(nlev, seen, stood, 0.0, 0.0, 0.05) == want
+    grow = 1 + 1  # reach 1, and a footprint of 0.01 m: one cell
+    want = (slice(max(r[0] - grow, 0), min(r[-1] + grow + 1, ny)),
+            slice(max(c[0] - grow, 0), min(c[-1] + grow + 1, nx))) if len(r) \
+        else (slice(0, 0), slice(0, 0))
+    layers = CellLayers(origin=(0.0, 0.0), resolution=0.05, z_min=-0.35, mask_dz=0.025,
+                        levels=np.zeros((ny, nx, 3, gk.N_FLOAT_FIELDS), np.float32),
+                        counts=np.zeros((ny, nx, 3, 2), np.uint32), nlev=nlev, seen=seen,
+                        updated=np.zeros((ny, nx)), stood=stood)
+    assert floor_module._observed_box(layers, RobotShape(radius=0.01), 1) == want
 
 
 @settings(max_examples=60, deadline=None)
