@@ -6,6 +6,7 @@ exact Euclidean distance transform. Called through `floor`, `obstacles` and
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 from numba import njit
@@ -684,9 +685,46 @@ _JUMPS = np.array([(dy, dx, int(dy / 2), int(dx / 2), dy - int(dy / 2), dx - int
 _JUMP_LENGTHS = np.hypot(_JUMPS[:, 0], _JUMPS[:, 1])
 
 
+def _crossed_cells(dy: int, dx: int) -> list[tuple[int, int]]:
+    """The cells the segment between the centres of cell (0, 0) and cell (dy, dx)
+    passes through, but for those two: where the stretches of it (t from 0 to 1) within
+    the cell's rows and within its columns meet, in more than a point or in a corner
+    other than one of the end cells' (as a jump two cells on crosses, along a diagonal,
+    the cell between, and for a knight's move both cells beside it)."""
+    def stretch(d: int, i: int) -> tuple[Fraction, Fraction]:
+        if d == 0:
+            return (Fraction(0), Fraction(1)) if i == 0 else (Fraction(1), Fraction(0))
+        a, b = Fraction(2 * i - 1, 2 * d), Fraction(2 * i + 1, 2 * d)
+        return min(a, b), max(a, b)
+
+    cells = []
+    for i in range(min(dy, 0), max(dy, 0) + 1):
+        for j in range(min(dx, 0), max(dx, 0) + 1):
+            (a0, a1), (b0, b1) = stretch(dy, i), stretch(dx, j)
+            lo, hi = max(a0, b0, Fraction(0)), min(a1, b1, Fraction(1))
+            corner = lo == hi and any(abs(lo * dy - ey) == abs(lo * dx - ex) == Fraction(1, 2)
+                                      for ey, ex in ((0, 0), (dy, dx)))
+            if lo <= hi and not corner and (i, j) not in ((0, 0), (dy, dx)):
+                cells.append((i, j))
+    return cells
+
+
+# `grow_region`'s long jumps along a plane: to the 24 cells three away (dy, dx), across
+# the cells the line between their centres crosses (`_LONG_CROSSED[k, :_LONG_COUNTS[k]]`)
+_LONG_JUMPS = np.array([(dy, dx) for dy in range(-3, 4) for dx in range(-3, 4)
+                        if max(abs(dy), abs(dx)) == 3], np.int64)
+_LONG_CROSSED_LISTS = [_crossed_cells(dy, dx) for dy, dx in _LONG_JUMPS]
+_LONG_COUNTS = np.array([len(c) for c in _LONG_CROSSED_LISTS], np.int64)
+_LONG_LENGTHS = np.hypot(_LONG_JUMPS[:, 0], _LONG_JUMPS[:, 1])
+_LONG_CROSSED = np.zeros((len(_LONG_JUMPS), _LONG_COUNTS.max(), 2), np.int64)
+for _k, _cells_of_k in enumerate(_LONG_CROSSED_LISTS):
+    _LONG_CROSSED[_k, :len(_cells_of_k)] = _cells_of_k
+
+
 @njit(cache=True, nogil=True)
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
-                empty: np.ndarray, max_rise: float, candidates: np.ndarray) -> np.ndarray:
+                empty: np.ndarray, max_rise: float, candidates: np.ndarray,
+                tangents: np.ndarray, tolerance: float) -> np.ndarray:
     """Cells reachable from the seeds through 8-neighbours whose heights differ <=
     max_step, each step only where every candidate next to its start within max_step of
     it is within max_step of its end too (`_spans_no_step`: a cell at a step's edge, 9
@@ -699,9 +737,13 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     move), and each end is within max_step of the cells next to the other that are
     within max_step of it (`_spans_no_step`), those cells read from `candidates`: every
     floor candidate, also those left out of `heights` (too steep, a step's face), as
-    they are what shows a step beside a jump's end. Jumps are tried only from the few
-    candidates the neighbours alone did not reach (a jump is the same from either end),
-    and onwards."""
+    they are what shows a step beside a jump's end. And across `empty` cells to the cells
+    three away along a plane (`_plane_jump`): where each end's tangent plane (`tangents`,
+    ny x nx x 5: height, x and y in m of its mean hit, and its gradient; NaN where it has
+    none) passes within `tolerance` of the other end (a ramp seen from afar is cut into
+    islands by gaps two cells wide, and its raised end was an obstacle). Jumps are tried
+    only from the few candidates the neighbours alone did not reach (a jump is the same
+    from either end), and onwards."""
     ny, nx = heights.shape
     inside = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
@@ -712,7 +754,7 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
                 queue[tail] = y * nx + x
                 tail += 1
     head = tail = _spread(heights, candidates, inside, queue, 0, tail, max_step, empty, max_rise,
-                          False)
+                          False, tangents, tolerance)
     for y in range(ny):
         for x in range(nx):
             if inside[y, x] or np.isnan(heights[y, x]):
@@ -721,17 +763,25 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
                 if _can_jump(heights, candidates, empty, max_step, max_rise, y, x, k) \
                         and inside[y + _JUMPS[k, 0], x + _JUMPS[k, 1]]:
                     inside[y, x] = True
-                    queue[tail] = y * nx + x
-                    tail += 1
                     break
-    _spread(heights, candidates, inside, queue, head, tail, max_step, empty, max_rise, True)
+            for k in range(0 if inside[y, x] else _LONG_JUMPS.shape[0]):
+                if _plane_jump(heights, candidates, empty, tangents, max_step, max_rise,
+                               tolerance, y, x, k) \
+                        and inside[y + _LONG_JUMPS[k, 0], x + _LONG_JUMPS[k, 1]]:
+                    inside[y, x] = True
+                    break
+            if inside[y, x]:
+                queue[tail] = y * nx + x
+                tail += 1
+    _spread(heights, candidates, inside, queue, head, tail, max_step, empty, max_rise, True,
+            tangents, tolerance)
     return inside
 
 
 @njit(cache=True, nogil=True)
 def _spread(heights: np.ndarray, candidates: np.ndarray, inside: np.ndarray, queue: np.ndarray,
             head: int, tail: int, max_step: float, empty: np.ndarray, max_rise: float,
-            jumps: bool) -> int:
+            jumps: bool, tangents: np.ndarray, tolerance: float) -> int:
     """`grow_region`'s breadth-first growth from the cells queue[head:tail] (inside),
     with or without jumps; returns the queue's new tail."""
     ny, nx = heights.shape
@@ -753,7 +803,61 @@ def _spread(heights: np.ndarray, candidates: np.ndarray, inside: np.ndarray, que
                 inside[yy, xx] = True
                 queue[tail] = yy * nx + xx
                 tail += 1
+        for k in range(_LONG_JUMPS.shape[0] if jumps else 0):
+            yy, xx = y + _LONG_JUMPS[k, 0], x + _LONG_JUMPS[k, 1]
+            if _plane_jump(heights, candidates, empty, tangents, max_step, max_rise, tolerance,
+                           y, x, k) and not inside[yy, xx]:
+                inside[yy, xx] = True
+                queue[tail] = yy * nx + xx
+                tail += 1
     return tail
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plane_jump(heights: np.ndarray, candidates: np.ndarray, empty: np.ndarray,
+                tangents: np.ndarray, max_step: float, max_rise: float, tolerance: float,
+                y: int, x: int, k: int) -> bool:
+    """Whether `grow_region` may jump from (y, x) by _LONG_JUMPS[k] (its end may lie
+    outside the grid): every cell between `empty`, each end on the other's tangent plane within
+    `tolerance` (where it has one: an island beyond a gap may be too small to fit a
+    plane), rising no faster than `max_rise` a cell and with no step beside either end
+    along the plane (`_no_step_along`). A flat floor's plane does not reach a lower floor
+    a step down, nor a ramp's the floor below its raised end."""
+    ny, nx = heights.shape
+    yy, xx = y + _LONG_JUMPS[k, 0], x + _LONG_JUMPS[k, 1]
+    if not (0 <= yy < ny and 0 <= xx < nx) \
+            or (np.isnan(tangents[y, x, 3]) and np.isnan(tangents[yy, xx, 3])):
+        return False
+    for i in range(_LONG_COUNTS[k]):
+        if not empty[y + _LONG_CROSSED[k, i, 0], x + _LONG_CROSSED[k, i, 1]]:
+            return False
+    a, b = tangents[y, x], tangents[yy, xx]
+    dx, dy = b[1] - a[1], b[2] - a[2]
+    if abs(b[0] - a[0] - a[3] * dx - a[4] * dy) > tolerance \
+            or abs(b[0] - a[0] - b[3] * dx - b[4] * dy) > tolerance \
+            or not abs(heights[yy, xx] - heights[y, x]) <= max_rise * _LONG_LENGTHS[k]:
+        return False
+    gx, gy = (a[3], a[4]) if not np.isnan(a[3]) else (b[3], b[4])
+    return _no_step_along(candidates, tangents, y, x, b, gx, gy, max_step) \
+        and _no_step_along(candidates, tangents, yy, xx, a, gx, gy, max_step)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _no_step_along(candidates: np.ndarray, tangents: np.ndarray, y: int, x: int,
+                   far: np.ndarray, gx: float, gy: float, max_step: float) -> bool:
+    """`_spans_no_step` along a plane of gradient (gx, gy): whether every candidate next to
+    (y, x) within max_step of it lies within max_step of the plane through the tangent
+    point `far` (height, x, y) a jump from (y, x) lands on."""
+    ny, nx = candidates.shape
+    near = candidates[y, x]
+    for yy in range(max(y - 1, 0), min(y + 2, ny)):
+        for xx in range(max(x - 1, 0), min(x + 2, nx)):
+            h = candidates[yy, xx]
+            off = far[0] - h - gx * (far[1] - tangents[yy, xx, 1]) \
+                - gy * (far[2] - tangents[yy, xx, 2])
+            if abs(h - near) <= max_step and abs(off) > max_step:  # False for NaN
+                return False
+    return True
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -847,7 +951,7 @@ def bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndar
 
 @njit(cache=True, nogil=True)
 def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step: float,
-                res: float, plane_noise: float) -> np.ndarray:
+                res: float, plane_noise: float) -> tuple[np.ndarray, np.ndarray]:
     """Slope (rad) of each candidate cell's floor, from the planes fitted to the
     candidates of the windows that hold it: a window is the square of `radius` cells
     round a candidate, its cells within `max_step` of that centre's height (the other
@@ -889,9 +993,12 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     still the foot of a 14.6 deg one). Each fit at the centres (`_plane_slope`): with
     fewer than six cells, or all near one line (the foot of a wall, a laser line's arc),
     the slope along them: a chain of cells each a little lower than the last is steep
-    even where no plane fits it; NaN with fewer than three."""
+    even where no plane fits it; NaN with fewer than three. Returns the slope and, where
+    it is the agreeing windows' mean gradient (the cell's own window fits a plane), that
+    gradient (dz/dx, dz/dy; NaN elsewhere), ny x nx x 2."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
+    gradient = np.full((ny, nx, 2), np.nan, np.float32)
     # Each window's plane where it fits within plane_noise (its variance; NaN elsewhere):
     # its gradient, its height at the centre's hit above the centre's height and the
     # gradient's variance along the direction its cells spread least
@@ -963,9 +1070,11 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
             if best == np.inf or np.isnan(variances[y, x]):  # its own window fits none
                 gentler, steepest = _fits_at_centres(heights, radius, max_step, res, y, x)
                 slope = steepest if best == np.inf else max(slope, gentler)
+            else:
+                gradient[y, x, 0], gradient[y, x, 1] = sx / weight, sy / weight
             if slope > -np.inf:  # a fit on either side or over both
                 out[y, x] = slope
-    return out
+    return out, gradient
 
 
 @njit(cache=True, nogil=True, inline="always")

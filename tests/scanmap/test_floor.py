@@ -26,6 +26,7 @@ from scanmap.navigation.floor import (
 from scanmap_driver.errors import MapError
 
 from . import scenes as S
+from .growth import grow_region
 
 
 def test_ransac_recovers_a_tilted_plane_among_outliers():
@@ -277,7 +278,7 @@ def test_grow_region_matches_a_breadth_first_reference():
     empty = np.isnan(heights) & (rng.random((25, 25)) < 0.5)  # some have hits, not floor
     seeds = np.zeros((25, 25), bool)
     seeds[12, 12] = seeds[3, 20] = True
-    got = nk.grow_region(heights, seeds, 0.05, empty, 0.02, heights)
+    got = grow_region(heights, seeds, 0.05, empty, 0.02, heights)
     inside = seeds.copy()
     queue = deque(zip(*np.nonzero(seeds), strict=True))
     while queue:
@@ -313,7 +314,7 @@ def test_the_floor_grows_across_a_cell_without_hits_but_not_over_a_step():
         seeds[3, 0] = True
         empty = np.zeros((7, 11), bool)
         empty[:, 5] = not hits
-        got = nk.grow_region(heights, seeds, 0.05, empty, 0.0134, heights)  # tan 15 deg x 5 cm
+        got = grow_region(heights, seeds, 0.05, empty, 0.0134, heights)  # tan 15 deg x 5 cm
         assert got[:, :5].all() and not got[:, 5].any()
         assert got[:, 6:].all() == joined and got[:, 6:].any() == joined
 
@@ -331,7 +332,7 @@ def test_the_floor_does_not_jump_from_a_step_face_down_to_the_floor_below():
         heights[:, 6] = np.nan
         seeds = np.zeros((7, 11), bool)
         seeds[3, 0] = True
-        got = nk.grow_region(heights, seeds, 0.05, np.isnan(heights), 0.0134, heights)
+        got = grow_region(heights, seeds, 0.05, np.isnan(heights), 0.0134, heights)
         assert got[:, :6].all() and not got[:, 6].any()
         assert got[:, 7:].any() == joined
 
@@ -353,9 +354,77 @@ def test_a_jump_sees_the_steep_cells_beside_its_end():
     seeds = np.zeros((7, 11), bool)
     seeds[:, :4] = seeds[:, 5] = True
     empty = np.isnan(candidates)
-    joined = nk.grow_region(heights, seeds, 0.05, empty, 0.0134, heights)[:, 7:]
+    joined = grow_region(heights, seeds, 0.05, empty, 0.0134, heights)[:, 7:]
     assert joined.all()  # the step unseen
-    assert not nk.grow_region(heights, seeds, 0.05, empty, 0.0134, candidates)[:, 7:].any()
+    assert not grow_region(heights, seeds, 0.05, empty, 0.0134, candidates)[:, 7:].any()
+
+
+def test_a_long_jump_crosses_the_cells_a_jump_two_cells_on_would():
+    # The cells between a jump's ends, by one rule: for two cells on, the one between
+    # (straight, diagonal) or both beside a knight's move, as `_can_jump` reads them;
+    # for three on, the same from either end
+    for dy, dx, ay, ax, by, bx in nk._JUMPS:
+        assert set(nk._crossed_cells(int(dy), int(dx))) == {(ay, ax), (by, bx)}
+    for (dy, dx), count, cells in zip(nk._LONG_JUMPS, nk._LONG_COUNTS, nk._LONG_CROSSED,
+                                      strict=True):
+        back = nk._crossed_cells(int(-dy), int(-dx))
+        assert {(y, x) for y, x in cells[:count]} == {(y + dy, x + dx) for y, x in back}
+        assert 2 <= count <= 4
+
+
+def tangent_planes(heights: np.ndarray, gradient: tuple[float, float]) -> np.ndarray:
+    """`grow_region`'s tangents of cells 5 cm apart, all of one gradient (NaN where the
+    height is)."""
+    ny, nx = heights.shape
+    rows, cols = np.mgrid[0:ny, 0:nx] * 0.05
+    tangents = np.stack([heights, cols, rows, np.full((ny, nx), gradient[0]),
+                         np.full((ny, nx), gradient[1])], axis=-1).astype(np.float32)
+    tangents[np.isnan(heights)] = np.nan
+    return tangents
+
+
+@pytest.mark.parametrize("direction", [(0, 1), (1, 0), (1, 1), (1, -1), (2, 1)])
+def test_a_ramp_cut_by_a_two_cell_gap_is_joined_along_its_plane(direction):
+    # A 12.4 deg ramp (1.1 cm a cell along its gradient) seen from afar: a gap two cells
+    # wide between the laser's lines cuts off its raised end, an island too small for a
+    # plane of its own (fresh ramp room 618: six cells an obstacle). The jump three cells
+    # on follows the ramp's tangent plane; the same island 2 cm off that plane (a ledge
+    # below the ramp's end, within max_rise of it) is not reached, nor with no plane
+    dy, dx = direction
+    unit = np.hypot(dy, dx)
+    rows, cols = np.mgrid[0:15, 0:15]
+    along = (rows * dy + cols * dx) / unit  # cells along the gradient
+    along -= along.min()
+    gradient = (0.22 * dx / unit, 0.22 * dy / unit)
+    end = 9.0 if 0 in direction else 10.0  # turned, wider: a jump two cells on spans 2.8
+    cut = (along >= 7.0) & (along < end)
+    for off, joined in ((0.0, True), (-0.02, False)):
+        heights = (0.011 * along + np.where(along >= end, off, 0.0)).astype(np.float32)
+        heights[cut] = np.nan
+        seeds = along < 1.0
+        empty = np.isnan(heights)
+        tangents = tangent_planes(heights, gradient)
+        tangents[along >= end, 3:] = np.nan  # the island's cells fit no plane
+        got = grow_region(heights, seeds, 0.05, empty, 0.0134, heights, tangents, 0.006)
+        assert got[along < 7.0].all()
+        assert got[along >= end].all() == joined and got[along >= end].any() == joined
+        assert not grow_region(heights, seeds, 0.05, empty, 0.0134, heights)[along >= end].any()
+
+
+def test_no_jump_along_a_plane_reaches_a_floor_below_a_step_or_crosses_hits():
+    # Flat floor, a gap two cells wide, a lower floor beyond: 4 cm down (within max_rise
+    # of three cells, 4.02 cm) is off the floor's plane; level with it, the jump is taken,
+    # but not across cells holding hits (not floor: a step's face, a wall's foot)
+    for lower, hits, joined in ((-0.04, False, False), (0.0, False, True), (0.0, True, False)):
+        heights = np.zeros((9, 12), np.float32)
+        heights[:, 5:7] = np.nan
+        heights[:, 7:] = lower
+        seeds = np.zeros((9, 12), bool)
+        seeds[4, 0] = True
+        empty = np.isnan(heights) & (not hits)
+        got = grow_region(heights, seeds, 0.05, empty, 0.0134, heights,
+                          tangent_planes(heights, (0.0, 0.0)), 0.006)
+        assert got[:, :5].all() and got[:, 7:].all() == joined and got[:, 7:].any() == joined
 
 
 def ramp_scene() -> S.Scene:

@@ -17,6 +17,8 @@ from scanmap.navigation import _kernels as nk
 from scanmap.navigation import floor
 from scanmap.navigation.floor import FloorConfig, RobotShape
 
+from .growth import grow_region
+
 RES = 0.05
 STEP = 0.05
 REACH = 2
@@ -30,7 +32,7 @@ def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None
     """`local_slope` of candidate heights sampled at the cells' centres (or `offsets`)."""
     if offsets is None:
         offsets = np.zeros(heights.shape + (2,))
-    return nk.local_slope(heights, offsets, REACH, step, RES, noise)
+    return nk.local_slope(heights, offsets, REACH, step, RES, noise)[0]
 
 
 @settings(max_examples=60, deadline=None)
@@ -38,8 +40,9 @@ def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None
 def test_the_slope_of_a_plane_is_its_gradient(gx, gy, base):
     y, x = np.mgrid[0:9, 0:9] * RES
     heights = (base + gx * x + gy * y).astype(np.float64)
-    slope = slope_of(heights, 10.0)
+    slope, gradient = nk.local_slope(heights, np.zeros((9, 9, 2)), REACH, 10.0, RES, NOISE)
     assert math.isclose(slope[4, 4], math.atan(math.hypot(gx, gy)), abs_tol=1e-4)
+    np.testing.assert_allclose(gradient[4, 4], (gx, gy), atol=1e-4)
 
 
 @settings(max_examples=60, deadline=None)
@@ -206,7 +209,7 @@ TURNED_STEP_MM = [
 def test_the_floor_grown_down_a_turned_steps_face_stops_at_the_step():
     heights = (np.array(TURNED_STEP_MM[::-1]) / 1000.0).astype(np.float32)
     bridges = nk.bridged_steps(heights, STEP, REACH_OF_A_STEP)
-    grown = nk.grow_region(np.where(bridges, np.nan, heights), heights > -0.003, STEP,
+    grown = grow_region(np.where(bridges, np.nan, heights), heights > -0.003, STEP,
                            np.isnan(heights), math.tan(FloorConfig().max_slope) * RES, heights)
     lower = heights < -0.055
     assert lower.sum() == 14 and not (grown & lower).any()
@@ -317,6 +320,6 @@ def test_the_floor_grows_no_staircase_down_a_steps_edge():
     heights[:, 5], heights[:, 6:] = -0.009, -0.056
     seeds = np.zeros((7, 12), bool)
     seeds[3, 0] = True
-    grown = nk.grow_region(heights, seeds, STEP, np.zeros((7, 12), bool),
+    grown = grow_region(heights, seeds, STEP, np.zeros((7, 12), bool),
                            math.tan(MAX_SLOPE) * RES, heights)
     assert grown[:, :6].all() and not grown[:, 6:].any()

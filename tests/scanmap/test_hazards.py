@@ -245,6 +245,13 @@ def test_ramps_either_side_of_max_slope_meet_the_goal_where_their_feet_were_misr
     assert hazard_run(scene=ramp_room(seed))["ramp_f1"] >= 0.97
 
 
+def test_a_ramps_raised_end_cut_off_by_a_gap_between_the_lines_is_floor():
+    # Fresh ramp room 618: its 12.8 deg ramp's raised end is seen from afar only as an
+    # island beyond two cells without a hit; the floor's growth did not reach it and its
+    # cells were obstacles (F1 0.965). The jump along the ramp's plane joins it (0.982)
+    assert hazard_run(scene=ramp_room(618))["ramp_f1"] >= 0.975
+
+
 def test_the_floor_beside_a_turned_steps_face_does_not_carry_the_floor_down_it():
     # Step room 11: a 6 cm step down turned to the cells. At scan 4 its lower floor's
     # cells next to the face, each fitting a flat window of its own, were gentle, and the

@@ -1,0 +1,18 @@
+"""`_kernels.grow_region` for the tests, by default without tangent planes (no jumps
+along a plane, `_plane_jump`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scanmap.navigation import _kernels as nk
+
+
+def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float, empty: np.ndarray,
+                max_rise: float, candidates: np.ndarray, tangents: np.ndarray | None = None,
+                tolerance: float = 0.0) -> np.ndarray:
+    """The floor grown from `seeds` (see `_kernels.grow_region`)."""
+    if tangents is None:
+        tangents = np.full(heights.shape + (5,), np.nan, np.float32)
+    return nk.grow_region(heights, seeds, max_step, empty, max_rise, candidates, tangents,
+                          tolerance)
