@@ -459,12 +459,14 @@ def step_edges(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarray,
                is_floor: np.ndarray, step: float, clearance: float,
                tolerance: float) -> np.ndarray:
     """Cells off the floor holding the edge of a step higher than `step` between two
-    floors (the raised end or a side of a ramp above the floor beside it): their lowest
-    level spans more than the step, nothing lies within `clearance` above it, its top
-    lies within `tolerance` of the floor height (`heights`) of a cell at most two away (a
-    face on the boundary of two cells puts its hits in both), and its bottom no more than
-    `tolerance` below the lowest floor at most two cells away: the face from the floor
-    below, or only its upper part where the rays saw no more of it."""
+    floors (the raised end or a side of a ramp above the floor beside it): their solid
+    (the lowest level and those above it each less than `clearance` above the last: no
+    room for the robot between, as where the rays saw a ramp's side face at 5 cm and its
+    surface at 18 cm, and nothing between) spans more than the step, its top lies within
+    `tolerance` of the floor height (`heights`) of a cell at most two away (a face on the
+    boundary of two cells puts its hits in both), and its bottom no more than `tolerance`
+    below the lowest floor at most two cells away: the face from the floor below, or
+    only its upper part where the rays saw no more of it."""
     ny, nx = nlev.shape
     out = np.zeros((ny, nx), np.bool_)
     for y in range(ny):
@@ -473,7 +475,11 @@ def step_edges(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarray,
             if n == 0 or is_floor[y, x]:
                 continue
             lo, hi = levels[y, x, 0, gk.LO], levels[y, x, 0, gk.HI]
-            if hi - lo <= step or (n > 1 and levels[y, x, 1, gk.LO] - hi < clearance):
+            for k in range(1, n):
+                if levels[y, x, k, gk.LO] - hi >= clearance:
+                    break
+                hi = max(hi, levels[y, x, k, gk.HI])
+            if hi - lo <= step:
                 continue
             top, lowest = False, np.inf
             for yy in range(max(y - 2, 0), min(y + 3, ny)):
@@ -490,9 +496,12 @@ def step_edges_reference(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarr
                          tolerance: float) -> np.ndarray:
     """`step_edges` in numpy, for tests."""
     ny, nx = nlev.shape
-    lo, hi = levels[:, :, 0, gk.LO], levels[:, :, 0, gk.HI]
-    above = levels[:, :, 1, gk.LO] if levels.shape[2] > 1 else np.full((ny, nx), np.inf)
-    spans = (nlev > 0) & ~is_floor & (hi - lo > step) & ((nlev == 1) | (above - hi >= clearance))
+    lo, hi = levels[:, :, 0, gk.LO], levels[:, :, 0, gk.HI].copy()
+    stacked = np.ones((ny, nx), bool)  # every level so far less than clearance above the last
+    for k in range(1, levels.shape[2]):
+        stacked &= (nlev > k) & (levels[:, :, k, gk.LO] - hi < clearance)
+        hi[stacked] = np.maximum(hi, levels[:, :, k, gk.HI])[stacked]
+    spans = (nlev > 0) & ~is_floor & (hi - lo > step)
     floor = np.pad(np.where(is_floor, heights, np.nan), 2, constant_values=np.nan)
     top, lowest = np.zeros((ny, nx), bool), np.full((ny, nx), np.inf)
     with np.errstate(invalid="ignore"):

@@ -33,7 +33,9 @@ from a candidate beside it more than a step down (a face the robot cannot climb 
 it; `_kernels.faces_below`). So a ramp within max_slope and a step within the robot's
 step height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A cell
 that holds the edge of a higher step between two floors (the raised end or a side of a
-ramp that ends above the floor beside it: one level spanning more than a step, up to
+ramp that ends above the floor beside it: one level, or levels each less than
+`clearance` above the last (a side face seen at 5 cm and the ramp's surface at 18 cm,
+no room for the robot between), spanning more than a step, up to
 within `plane_tolerance` of the ramp's surface and from the floor below, or from higher
 up its face where the rays saw no lower, both floors at most two cells away) is floor,
 as both its parts are, and an OBSTACLE: the robot may not cross the step. A step's face

@@ -191,8 +191,9 @@ def test_step_edges_match_a_numpy_reference(seed, ny, nx, depth):
     low = rng.choice([0.0, 0.1], (ny, nx)) + rng.normal(0.0, 0.02, (ny, nx))
     levels[..., 0, gk.LO] = low
     levels[..., 0, gk.HI] = low + rng.uniform(0.0, 0.15, (ny, nx))
-    if depth > 1:
-        levels[..., 1, gk.LO] = levels[..., 0, gk.HI] + rng.uniform(0.0, 0.4, (ny, nx))
+    for k in range(1, depth):  # each some way above the last, less than clearance or more
+        levels[..., k, gk.LO] = levels[..., k - 1, gk.HI] + rng.uniform(0.0, 0.4, (ny, nx))
+        levels[..., k, gk.HI] = levels[..., k, gk.LO] + rng.uniform(0.0, 0.15, (ny, nx))
     nlev = rng.integers(0, depth + 1, (ny, nx)).astype(np.uint8)
     heights = rng.choice([0.0, 0.1], (ny, nx)) + rng.normal(0.0, 0.02, (ny, nx))
     heights[rng.random((ny, nx)) < 0.2] = np.nan
@@ -220,6 +221,22 @@ def test_a_step_edge_holds_a_face_or_its_upper_part_between_two_floors(bottom, f
         heights[0, 3:] = 0.18
     is_floor = ~np.isnan(heights)
     args = (levels, nlev, heights, is_floor, 0.05, 0.2, 0.03)
+    assert nk.step_edges(*args)[0, 2] == edge
+    assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
+
+
+@pytest.mark.parametrize(("clearance", "edge"), [(0.2, True), (0.05, False)])
+def test_a_step_edge_may_hold_its_face_and_top_as_two_levels(clearance, edge):
+    # A cell straddling a ramp's side 18 cm up (fresh ramp room 608): the rays saw the
+    # side face at 0-8 cm and the ramp's surface at 17-18 cm, nothing between; no robot
+    # fits in the 9 cm between (clearance), so the two are one solid from the floor to the
+    # ramp's top. With room between, the lower level alone is no edge
+    levels = np.zeros((1, 5, 2, gk.N_FLOAT_FIELDS), np.float32)
+    levels[0, 2, 0, gk.LO], levels[0, 2, 0, gk.HI] = 0.0, 0.08
+    levels[0, 2, 1, gk.LO], levels[0, 2, 1, gk.HI] = 0.17, 0.18
+    nlev = np.array([[1, 1, 2, 1, 1]], np.uint8)
+    heights = np.array([[0.18, 0.18, np.nan, 0.0, 0.0]], np.float32)
+    args = (levels, nlev, heights, ~np.isnan(heights), 0.05, clearance, 0.03)
     assert nk.step_edges(*args)[0, 2] == edge
     assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
 
