@@ -748,11 +748,11 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     floor candidate, also those left out of `heights` (too steep, a step's face), as
     they are what shows a step beside a jump's end. And across `empty` cells to the cells
     three away along a plane (`_plane_jump`): where each end's tangent plane (`tangents`,
-    ny x nx x 5: height, x and y in m of its mean hit, and its gradient; NaN where it has
-    none) passes within `tolerance` of the other end (a ramp seen from afar is cut into
-    islands by gaps two cells wide, and its raised end was an obstacle). Jumps are tried
-    only from the few candidates the neighbours alone did not reach (a jump is the same
-    from either end), and onwards."""
+    ny x nx x 5, `local_slope`: height, x and y in m of its mean hit, and its gradient,
+    NaN where it has none) passes within `tolerance` of the other end (a ramp seen from
+    afar is cut into islands by gaps two cells wide, and its raised end was an
+    obstacle). Jumps are tried only from the few candidates the neighbours alone did not
+    reach (a jump is the same from either end), and onwards."""
     ny, nx = heights.shape
     inside = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
@@ -1002,12 +1002,14 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     still the foot of a 14.6 deg one). Each fit at the centres (`_plane_slope`): with
     fewer than six cells, or all near one line (the foot of a wall, a laser line's arc),
     the slope along them: a chain of cells each a little lower than the last is steep
-    even where no plane fits it; NaN with fewer than three. Returns the slope and, where
-    it is the agreeing windows' mean gradient (the cell's own window fits a plane), that
-    gradient (dz/dx, dz/dy; NaN elsewhere), ny x nx x 2."""
+    even where no plane fits it; NaN with fewer than three. Returns the slope and each
+    candidate's tangent plane, ny x nx x 5 (`grow_region`'s jumps along a plane): its
+    height, the x and y (m from the first cell's centre) where its hits lie and, where
+    the slope is the agreeing windows' mean (the cell's own window fits a plane), their
+    mean gradient (dz/dx, dz/dy; NaN elsewhere)."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
-    gradient = np.full((ny, nx, 2), np.nan, np.float32)
+    tangent = np.full((ny, nx, 5), np.nan, np.float32)
     # Each window's plane where it fits within plane_noise (its variance; NaN elsewhere):
     # its gradient, its height at the centre's hit above the centre's height and the
     # gradient's variance along the direction its cells spread least
@@ -1046,6 +1048,9 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
             hc = heights[y, x]
             if np.isnan(hc):
                 continue
+            tangent[y, x, 0] = hc
+            tangent[y, x, 1] = x * res + offsets[y, x, 0]
+            tangent[y, x, 2] = y * res + offsets[y, x, 1]
             best, slope, fits = np.inf, -np.inf, 0
             for yy in range(y - radius, y + radius + 1, radius):
                 for xx in range(x - radius, x + radius + 1, radius):
@@ -1080,10 +1085,10 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                 gentler, steepest = _fits_at_centres(heights, radius, max_step, res, y, x)
                 slope = steepest if best == np.inf else max(slope, gentler)
             else:
-                gradient[y, x, 0], gradient[y, x, 1] = sx / weight, sy / weight
+                tangent[y, x, 3], tangent[y, x, 4] = sx / weight, sy / weight
             if slope > -np.inf:  # a fit on either side or over both
                 out[y, x] = slope
-    return out, gradient
+    return out, tangent
 
 
 @njit(cache=True, nogil=True, inline="always")

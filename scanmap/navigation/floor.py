@@ -468,7 +468,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # at 0.3 px of laser peak noise, were too thick for their mean hits to count)
     one_surface = res * math.sqrt(2.0) * math.tan(params.max_slope) + 6.0 * params.plane_noise
     mean_heights = nk.mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
-    slope, gradient = nk.local_slope(mean_heights, hits_at,
+    slope, tangents = nk.local_slope(mean_heights, hits_at,
                                      max(round(params.slope_reach / res), 1),
                                      robot.step_height, res, params.plane_noise)
     # steep, or crossed by a face down a step (no floor of its own: a step's edge between
@@ -492,8 +492,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
         is_floor = nk.grow_region(level, seeds, robot.step_height, layers.nlev == 0,
-                                   math.tan(params.max_slope) * res, cand,
-                                   _tangents(mean_heights, hits_at, gradient, res),
+                                   math.tan(params.max_slope) * res, cand, tangents,
                                    2.0 * params.plane_noise)
         joined = nk.touching_floor(cand, is_floor, bridges, robot.step_height)
         is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
@@ -674,19 +673,6 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
                         slope=np.where(is_floor, slope, np.nan).astype(np.float32))
-
-
-def _tangents(heights: np.ndarray, hits_at: np.ndarray, gradient: np.ndarray, res: float
-              ) -> np.ndarray:
-    """Each cell's tangent plane for `grow_region`'s jumps along a plane: its mean hit's
-    height, x and y (m, from the window's first cell's centre) and its gradient."""
-    ny, nx = heights.shape
-    tangents = np.empty((ny, nx, 5), np.float32)
-    tangents[..., 0] = heights
-    tangents[..., 1] = np.arange(nx) * res + hits_at[..., 0]
-    tangents[..., 2] = np.arange(ny)[:, None] * res + hits_at[..., 1]
-    tangents[..., 3:] = gradient
-    return tangents
 
 
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:
