@@ -371,24 +371,27 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     for a 2-D laser that never sees the floor); None leaves those cells UNKNOWN.
 
     Only the part of the window within reach of what was observed is segmented (every
-    rule reaches at most `_reach` cells from a hit, a cell rays saw or a place the robot
-    stood): beyond it each cell is UNKNOWN, off the floor, its floor height that of the
-    largest plane (else `fallback_floor`, else NaN), as segmenting the whole window gives
-    them (to the rounding of the cell centres, computed from another origin). A window
-    round the robot often holds much that no ray reached (behind a corridor's walls:
-    half of an 8 m window).
+    rule that decides a cell's state reaches at most `_reach` cells from a hit, a cell
+    rays saw or a place the robot stood): beyond it each cell is UNKNOWN, off the floor,
+    its floor height that of the nearest floor within `fill_radius` (carried there as in
+    the part segmented, `_carried_beyond`), else of the largest plane (else
+    `fallback_floor`, else NaN), as segmenting the whole window gives them (to the
+    rounding of the cell centres, computed from another origin). A window round the
+    robot often holds much that no ray reached (behind a corridor's walls: two thirds of
+    an 8 m window).
     """
     robot = robot or RobotShape()
     params = params or FloorConfig()
     if fallback_floor is not None and not math.isfinite(fallback_floor):
         raise MapError(f"segment: fallback_floor must be a finite height or None, got "
                        f"{fallback_floor}")
-    rows, cols = _observed_box(layers, robot, _reach(params, layers.resolution))
+    reach = _reach(params, layers.resolution)
+    rows, cols = _observed_box(layers, robot, reach)
     ny, nx = layers.shape
     area = (rows.stop - rows.start) * (cols.stop - cols.start)
     if not area or area > 0.8 * ny * nx:  # nothing seen, or little to leave out
-        return _segment(layers, robot, params, fallback_floor)
-    inner = _segment(_cropped(layers, rows, cols), robot, params, fallback_floor)
+        return _segment(layers, robot, params, fallback_floor)[0]
+    inner, carried = _segment(_cropped(layers, rows, cols), robot, params, fallback_floor)
     xs, ys = layers.cell_centers()
     if inner.planes:
         floor_height = inner.planes[0].height_at(xs[None, :], ys[:, None]).astype(np.float32)
@@ -405,6 +408,8 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                         (points, inner.points), (band_logodds, inner.band_logodds),
                         (is_floor, inner.is_floor), (slope, inner.slope)):
         whole[rows, cols] = part
+    _carried_beyond(floor_height, carried, rows, cols, params.fill_radius, layers.resolution,
+                    reach)
     return Segmentation(origin=layers.origin, resolution=layers.resolution, robot=robot,
                         floor_height=floor_height, is_floor=is_floor, planes=inner.planes,
                         state=state, points=points, band_logodds=band_logodds,
@@ -412,12 +417,36 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
 
 
 def _reach(params: FloorConfig, resolution: float) -> int:
-    """How far (cells) any rule of the segmentation reaches from the cells that were
-    observed: the floor's height carried, an overhang spread, a drop-off spread or a gap
-    bridged, and a few cells more for the 3 x 3 and 5 x 5 neighbourhoods on the way."""
-    farthest = max(params.fill_radius, params.overhang_reach, params.drop_reach,
-                   params.max_gap, params.max_hole)
+    """How far (cells) any rule that decides a cell's state reaches from the cells that
+    were observed: a drop-off spread, a gap bridged, an overhang spread out and back (to
+    an observed cell: half its reach; farther out it covers cells UNKNOWN anyway), and a
+    few cells more for the 3 x 3 and 5 x 5 neighbourhoods on the way. The floor's height
+    carried farther is `_carried_beyond`'s."""
+    farthest = max(params.drop_reach, params.max_gap, params.max_hole,
+                   0.5 * params.overhang_reach)
     return math.ceil(farthest / resolution) + 3
+
+
+def _carried_beyond(floor_height: np.ndarray, carried: np.ndarray, rows: slice, cols: slice,
+                    fill_radius: float, resolution: float, reach: int) -> None:
+    """Give the cells of `floor_height` round the box (rows, cols) segmented the height of
+    the nearest cell of `carried` (floor seen in the box, at least `reach` cells inside
+    its edge) within `fill_radius` (m), as `_segment` carries it inside the box."""
+    if not carried.any():
+        return
+    ny, nx = floor_height.shape
+    pad = max(math.floor(fill_radius / resolution) - reach, 0)
+    outer = (slice(max(rows.start - pad, 0), min(rows.stop + pad, ny)),
+             slice(max(cols.start - pad, 0), min(cols.stop + pad, nx)))
+    inside = (slice(rows.start - outer[0].start, rows.stop - outer[0].start),
+              slice(cols.start - outer[1].start, cols.stop - outer[1].start))
+    sources = np.zeros((outer[0].stop - outer[0].start, outer[1].stop - outer[1].start), bool)
+    sources[inside] = carried
+    distance, nearest = distance_transform(sources)
+    ring = distance * resolution <= fill_radius
+    ring[inside] = False
+    heights = floor_height[outer]  # a view: written in place
+    heights[ring] = heights.reshape(-1)[nearest[ring]]
 
 
 def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[slice, slice]:
@@ -453,8 +482,9 @@ def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
 
 
 def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
-             fallback_floor: float | None) -> Segmentation:
-    """`segment` on the whole of `layers`."""
+             fallback_floor: float | None) -> tuple[Segmentation, np.ndarray]:
+    """`segment` on the whole of `layers`, and the floor whose heights it carried (up to
+    `fill_radius` into cells without observed floor)."""
     rng = np.random.default_rng(params.seed)
     ny, nx = layers.shape
     res = layers.resolution
@@ -672,7 +702,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                                   & ~covered) | edges,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
-                        slope=np.where(is_floor, slope, np.nan).astype(np.float32))
+                        slope=np.where(is_floor, slope, np.nan).astype(np.float32)), carried
 
 
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:

@@ -597,7 +597,7 @@ def test_a_window_mostly_unobserved_segments_as_a_whole():
                                             floor_module._reach(params, layers.resolution))
     assert (rows.stop - rows.start) * (cols.stop - cols.start) < 0.4 * layers.nlev.size
     seg = segment(layers, robot, params)
-    assert_same_segmentation(seg, floor_module._segment(layers, robot, params, None))
+    assert_same_segmentation(seg, floor_module._segment(layers, robot, params, None)[0])
     assert (seg.state == FREE).sum() > 1000 and (seg.state == OBSTACLE).sum() > 300
     assert np.isfinite(seg.floor_height).all()  # beyond the reach: the floor plane's height
 
@@ -612,7 +612,7 @@ def test_a_2d_laser_window_mostly_unobserved_keeps_its_assumed_floor():
     layers = grid.layers((-9.0, -9.0, 9.0, 9.0))
     flat = FloorConfig(min_coverage=0.0, detect=False)
     seg = segment(layers, params=flat, fallback_floor=0.0)
-    assert_same_segmentation(seg, floor_module._segment(layers, RobotShape(), flat, 0.0))
+    assert_same_segmentation(seg, floor_module._segment(layers, RobotShape(), flat, 0.0)[0])
     assert (seg.floor_height == 0.0).all() and (seg.state == OBSTACLE).sum() > 100
 
 
