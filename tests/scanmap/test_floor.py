@@ -400,8 +400,9 @@ def tangent_planes(heights: np.ndarray, gradient: tuple[float, float]) -> np.nda
     return tangents
 
 
+@pytest.mark.parametrize("base", [0.0, -250.0])  # a floor far from the map's zero too
 @pytest.mark.parametrize("direction", [(0, 1), (1, 0), (1, 1), (1, -1), (2, 1)])
-def test_a_ramp_cut_by_a_two_cell_gap_is_joined_along_its_plane(direction):
+def test_a_ramp_cut_by_a_two_cell_gap_is_joined_along_its_plane(direction, base):
     # A 12.4 deg ramp (1.1 cm a cell along its gradient) seen from afar: a gap two cells
     # wide between the laser's lines cuts off its raised end, an island too small for a
     # plane of its own (fresh ramp room 618: six cells an obstacle). The jump three cells
@@ -416,7 +417,7 @@ def test_a_ramp_cut_by_a_two_cell_gap_is_joined_along_its_plane(direction):
     end = 9.0 if 0 in direction else 10.0  # turned, wider: a jump two cells on spans 2.8
     cut = (along >= 7.0) & (along < end)
     for off, joined in ((0.0, True), (-0.02, False)):
-        heights = (0.011 * along + np.where(along >= end, off, 0.0)).astype(np.float32)
+        heights = (base + 0.011 * along + np.where(along >= end, off, 0.0)).astype(np.float32)
         heights[cut] = np.nan
         seeds = along < 1.0
         empty = np.isnan(heights)
