@@ -827,9 +827,9 @@ def _plane_jump(heights: np.ndarray, candidates: np.ndarray, empty: np.ndarray,
                 tangents: np.ndarray, max_step: float, max_rise: float, tolerance: float,
                 y: int, x: int, k: int) -> bool:
     """Whether `grow_region` may jump from (y, x) by _LONG_JUMPS[k] (its end may lie
-    outside the grid): every cell between `empty`, each end on the other's tangent plane within
-    `tolerance` (where it has one: an island beyond a gap may be too small to fit a
-    plane), rising no faster than `max_rise` a cell and with no step beside either end
+    outside the grid): every cell between `empty`, each end on the other's tangent plane
+    within `tolerance` (where it has one: an island beyond a gap may be too small to fit
+    a plane), rising no faster than `max_rise` a cell and with no step beside either end
     along the plane (`_no_step_along`). A flat floor's plane does not reach a lower floor
     a step down, nor a ramp's the floor below its raised end."""
     ny, nx = heights.shape

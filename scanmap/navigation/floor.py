@@ -442,11 +442,18 @@ def _carried_beyond(floor_height: np.ndarray, carried: np.ndarray, rows: slice, 
               slice(cols.start - outer[1].start, cols.stop - outer[1].start))
     sources = np.zeros((outer[0].stop - outer[0].start, outer[1].stop - outer[1].start), bool)
     sources[inside] = carried
-    distance, nearest = distance_transform(sources)
-    ring = distance * resolution <= fill_radius
+    ring = np.ones(sources.shape, bool)
     ring[inside] = False
-    heights = floor_height[outer]  # a view: written in place
-    heights[ring] = heights.reshape(-1)[nearest[ring]]
+    _carry(floor_height[outer], sources, ring, fill_radius, resolution)  # a view: in place
+
+
+def _carry(heights: np.ndarray, carried: np.ndarray, into: np.ndarray, fill_radius: float,
+           resolution: float) -> None:
+    """Give the cells `into` within `fill_radius` (m) of a cell of `carried` that cell's
+    height (the nearest's), in place."""
+    distance, nearest = distance_transform(carried)
+    fill = into & (distance * resolution <= fill_radius)
+    heights[fill] = heights.reshape(-1)[nearest[fill]]
 
 
 def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[slice, slice]:
@@ -535,9 +542,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                           params.clearance, params.plane_tolerance)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
     if carried.any():
-        distance, nearest = distance_transform(carried)
-        fill = ~is_floor & (distance * res <= params.fill_radius)
-        floor_height[fill] = floor_height.reshape(-1)[nearest[fill]]
+        _carry(floor_height, carried, ~is_floor, params.fill_radius, res)
     if planes:  # farther out, the largest floor plane
         fy, fx = _cells(np.isnan(floor_height))
         floor_height[fy, fx] = planes[0].height_at(xs[fx], ys[fy])
