@@ -49,7 +49,8 @@ below the step is not reached through it.
 
 Negative obstacles: a cell not on the floor where a level lies wholly more than a step
 below the floor height around it, or where rays passed more than a step below it (the
-floor is not where it must be), and below the floor where the robot stood nearest, is a
+floor is not where it must be; among floor hits, seen from them down unbroken, not one
+noisy hit), and below the floor where the robot stood nearest, is a
 DROP_OFF (a trench no lower than that floor, behind a ramp's raised top or beside a
 platform, may be reached round its ends: UNKNOWN until seen); the drop-off spreads up to
 `drop_reach` through cells without any hit that touch no hit but the drop-off's own and

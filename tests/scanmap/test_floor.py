@@ -278,6 +278,32 @@ def test_a_thin_level_whose_mean_hit_lies_more_than_a_step_down_is_below_the_flo
     assert got.tolist() == [[False, below]]
 
 
+def seen_bins(*heights: tuple[float, float]) -> np.uint64:
+    """The observed-height mask (bins of 2.5 cm from -0.35 m) over the spans of heights."""
+    mask = np.uint64(0)
+    for lo, hi in heights:
+        mask |= gk.height_mask(lo, hi, -0.35, 0.025)
+    return mask
+
+
+@pytest.mark.parametrize(("level", "seen", "below"), [
+    # floor hits and one noisy hit 16 cm down, seen there and from the floor up only: the
+    # hit of a far wall's ray displaced past the wall (0.3 px at 4-6 m)
+    ((-0.16, 0.005), seen_bins((-0.16, -0.155), (-0.01, 0.9)), False),
+    # a far wall's top in the cell, seen from its lowest hit up to the floor
+    ((-0.16, 0.005), seen_bins((-0.16, 0.9)), True),
+    # no hit near the floor: rays passed 16 cm down
+    ((0.3, 0.35), seen_bins((-0.16, -0.155), (0.1, 0.9)), True),
+])
+def test_rays_below_the_floor_make_a_drop_off_unless_a_noisy_hit_below_floor_hits(
+        level, seen, below):
+    levels = np.zeros((1, 1, 1, gk.N_FLOAT_FIELDS), np.float32)
+    levels[0, 0, 0, [gk.LO, gk.HI, gk.MZ]] = *level, level[1] - 0.01
+    got = nk.below_floor(levels, np.ones((1, 1), np.uint8), np.array([[seen]], np.uint64),
+                         np.zeros((1, 1), np.float32), 0.05, -0.35, 0.025, 0.037)
+    assert got.tolist() == [[below]]
+
+
 def spans_no_step(heights: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> bool:
     """No cell next to `start` (in the grid) lies within 5 cm of it and more than 5 cm from
     `end`."""

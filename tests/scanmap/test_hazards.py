@@ -578,3 +578,14 @@ def test_a_trench_behind_a_ramps_raised_top_is_no_drop_off():
     assert run["drop_free"] == 0
     assert run["edge_error_cells"] <= math.sqrt(2.0)  # measured 0.8
     assert run["drop_false"] <= 5  # measured 1
+
+
+def test_a_far_walls_noisy_hits_past_it_do_not_move_the_drop_offs_edge():
+    # Ramp room 12 at 0.3 px of laser peak noise: a hole's far wall 4-5 m off, hit 10-20
+    # cm down, put single hits a cell past the wall among the floor's hits, and the
+    # observed mask's bin of such a hit read as rays passing below the floor there: its
+    # edge 1.34 cells off the truth after the last scan. A hit alone below floor hits is
+    # not taken for rays passing below them
+    run = hazard_run(scene=ramp_room(12), pixel_sigma=0.3)
+    assert run["edge_error_cells"] <= 1.0
+    assert run["drop_free_any_scan"] == 0
