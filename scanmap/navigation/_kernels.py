@@ -1227,12 +1227,11 @@ def below_floor(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
             bins = math.floor((limit - z_min) / mask_dz) - 1  # bins wholly below limit - dz
             if bins > 0 and not out[y, x]:
                 below = seen[y, x] & ((np.uint64(1) << np.uint64(min(bins, 63))) - np.uint64(1))
-                if below and not _floor_hit_in(levels, nlev[y, x], y, x, limit, f + step):
-                    out[y, x] = True
-                elif below:  # seen from the floor's hits down to it, or a noisy hit
+                if below:  # among floor hits, seen from them down to it (not a noisy hit)
                     between = gk.bins_mask(_highest_bit(below) + 1,
                                            math.floor((f - z_min) / mask_dz) - 1)
-                    out[y, x] = seen[y, x] & between == between
+                    out[y, x] = seen[y, x] & between == between \
+                        or not _floor_hit_in(levels, nlev[y, x], y, x, limit, f + step)
     return out
 
 
