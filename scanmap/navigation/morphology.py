@@ -156,6 +156,13 @@ def max_filter(mask: np.ndarray, size: int) -> np.ndarray:
     return cv2.dilate(_bytes(mask), np.ones((size, size), np.uint8)).view(np.bool_)
 
 
+def neighbours(mask: np.ndarray) -> np.ndarray:
+    """How many of each cell's 8 neighbours are in `mask` (uint8; none beyond the edge)."""
+    count = cv2.boxFilter(_bytes(mask), -1, (3, 3), normalize=False,
+                          borderType=cv2.BORDER_CONSTANT)
+    return count - mask
+
+
 def min_filter(values: np.ndarray, size: int) -> np.ndarray:
     """The least value (float32) in the `size` x `size` square centred on each cell (odd
     size; cells beyond the edge do not count)."""

@@ -50,3 +50,36 @@ def test_floor_between_two_drop_off_cells_is_not_free():
     assert seg.state[11, 15] == DROP_OFF and seg.state[11, 17] == DROP_OFF
     assert seg.state[11, 16] == UNKNOWN
     assert (seg.state[ROWS, 13] == FREE).all()
+
+
+def blank_beside_floor():
+    """Floor hit 20 times a cell, beside a patch nothing was seen in (rows 6-17, columns
+    14-19: no hit, no height seen, as a black-lined hole leaves it)."""
+    layers = floor_cells()
+    layers.counts[...] = 20
+    layers.nlev[ROWS, 14:20] = 0
+    layers.seen[ROWS, 14:20] = 0
+    return layers
+
+
+@pytest.mark.parametrize("hits, state", [(1, UNKNOWN), (2, UNKNOWN), (3, FREE)])
+def test_floor_on_few_hits_jutting_into_blank_space_is_not_free(hits, state):
+    # Rendered mixed rooms 1 and 7: one floor-height hit of a black-lined hole's rim, 3-4
+    # cm off its true place (the stripe cut by the rim) and a few cm of registration, a
+    # cell inside the hole, was FREE with five of its eight neighbours unobserved
+    layers = blank_beside_floor()
+    layers.nlev[11, 14], layers.seen[11, 14] = 1, layers.seen[0, 0]
+    layers.counts[11, 14, 0, gk.HITS] = hits
+    seg = segment(layers, ROBOT)
+    assert seg.state[11, 14] == state
+    assert (seg.state[ROWS, 13] == FREE).all()  # the rim beside it, hit 20 times
+
+
+def test_floor_on_one_hit_along_blank_space_stays_free():
+    # The rim's cells on one hit each, two or three of their neighbours unobserved (a
+    # straight edge, not a corner or a tip): they stay FREE
+    layers = blank_beside_floor()
+    layers.counts[5:19, 13, 0, gk.HITS] = 1
+    seg = segment(layers, ROBOT)
+    assert (seg.state[ROWS, 13] == FREE).all()
+    assert (seg.state[ROWS, 14:20] == UNKNOWN).all()

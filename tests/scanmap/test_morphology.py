@@ -92,3 +92,10 @@ def test_empty_and_full_masks():
 def test_within_distance_is_the_distance_fields_comparison(mask, distance):
     assert np.array_equal(morphology.within_distance(mask, distance),
                           distance_transform(mask)[0] <= distance)
+
+
+@settings(max_examples=60, deadline=None)
+@given(mask=masks)
+def test_neighbours_count_the_eight_around_each_cell(mask):
+    expected = ndimage.convolve(mask.astype(int), np.ones((3, 3), int), mode="constant")
+    assert np.array_equal(morphology.neighbours(mask), expected - mask)
