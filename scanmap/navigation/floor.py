@@ -693,9 +693,12 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # and such a cell jutting into space where nothing was seen (five or more of its eight
     # neighbours UNKNOWN without a hit: a corner or a tip): the stripe cut at a black-lined
     # hole's rim and a few cm of registration put a rim hit there (rendered mixed rooms 1
-    # and 7: one hit 3-4 cm off its true place, 5-6 cm inside the hole in the map)
-    blank = (state == UNKNOWN) & (layers.nlev == 0)
-    state[scant & (state == FREE) & (morphology.neighbours(blank) >= 5)] = UNKNOWN
+    # and 7: one hit 3-4 cm off its true place, 5-6 cm inside the hole in the map); and
+    # any cell joined to the free space by one neighbour alone (seven of them unobserved),
+    # which no robot wider than a cell drives on (rendered mixed room 3: a rim cell's 7
+    # hits of one scan, 8 cm of registration drift along the room, inside a hole)
+    blank = morphology.neighbours((state == UNKNOWN) & (layers.nlev == 0))
+    state[(state == FREE) & ~stood & ((blank >= 7) | scant & (blank >= 5))] = UNKNOWN
     # Floor next to a DROP_OFF cell more than plane_tolerance below the largest floor
     # plane: a hole's far wall's top, a few cm down, grown into the floor (rendered
     # rooms: FREE a cell inside the hole), or a rim the edge crosses
