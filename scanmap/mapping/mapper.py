@@ -66,6 +66,7 @@ from scanmap.mapping.rebuild import (
 )
 from scanmap.mapping.scan_motion import frame_poses
 from scanmap.mapping.state_file import MapperState, load_state, save_state
+from scanmap.mapping.stray_points import lone_low_points
 from scanmap.mapping.thread import MappingThread
 from scanmap.mapping.warm_up import warm_up
 from scanmap.navigation.floor import Segmentation, segment
@@ -273,11 +274,14 @@ class Mapper:
                                    self._contributions[:n])
 
     def _fuse(self, scan: Scan, pose: np.ndarray) -> InsertStats:
+        c = self.config
+        stray = lone_low_points(scan, c.robot.step_height, c.grid.resolution)
+        if stray.any():  # a peak thrown off the stripe, not a hole (`stray_points`)
+            scan = scan.select(~stray)
         poses = frame_poses(scan, pose)
         points, origins = scan_rays(scan, self.model, poses)
         unlit = unlit_floor(scan, self.model, poses)
         last = poses if poses.ndim == 2 else poses[scan.frame_index.max()]
-        c = self.config
         if c.grid.window is not None:
             self.grid.recenter(float(last[0, 3]), float(last[1, 3]))
         stats = self.grid.insert(points, origins, float(scan.time.max()),
