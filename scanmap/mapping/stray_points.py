@@ -23,14 +23,11 @@ def lone_low_points(scan: Scan, depth: float, radius: float) -> np.ndarray:
     """(N,) bool: the points of `scan` more than `depth` (m) below base_link's x-y plane
     with no other point of their frame within `radius` (m), in any order of the points."""
     points, frames = scan.points, scan.frame_index
-    low = points[:, 2] < -depth
-    if not low.any():
-        return low
-    if bool((frames[1:] >= frames[:-1]).all()):  # frame by frame, as scans are assembled
-        return _lone(points, frames, low, radius * radius)
-    order = np.argsort(frames, kind="stable")
-    lone = np.zeros(len(points), bool)
-    lone[order] = _lone(points[order], frames[order], low[order], radius * radius)
+    in_frames = slice(None) if bool((frames[1:] >= frames[:-1]).all()) \
+        else np.argsort(frames, kind="stable")  # scans are assembled frame by frame
+    lone = np.empty(len(points), bool)
+    lone[in_frames] = _lone(points[in_frames], frames[in_frames],
+                            points[in_frames, 2] < -depth, radius * radius)
     return lone
 
 

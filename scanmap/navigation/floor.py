@@ -697,8 +697,9 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # any cell joined to the free space by one neighbour alone (seven of them unobserved),
     # which no robot wider than a cell drives on (rendered mixed room 3: a rim cell's 7
     # hits of one scan, 8 cm of registration drift along the room, inside a hole)
-    blank = morphology.neighbours((state == UNKNOWN) & (layers.nlev == 0))
-    state[(state == FREE) & ~stood & ((blank >= 7) | scant & (blank >= 5))] = UNKNOWN
+    unseen_around = morphology.neighbours((state == UNKNOWN) & (layers.nlev == 0))
+    state[(state == FREE) & ~stood
+          & ((unseen_around >= 7) | scant & (unseen_around >= 5))] = UNKNOWN
     # Floor next to a DROP_OFF cell more than plane_tolerance below the largest floor
     # plane: a hole's far wall's top, a few cm down, grown into the floor (rendered
     # rooms: FREE a cell inside the hole), or a rim the edge crosses
