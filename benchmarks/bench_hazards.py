@@ -263,6 +263,7 @@ def rendered_run(scene: Scene | None = None, scans: int | None = None,
             "edge_within_one": errors["drop_off_edge_within_one"],
             "drop_false": errors["false_drop_off_cells"],
             "obstacle_f1": errors["obstacle_f1"],
+            "ramp_f1": errors.get("ramp_f1", math.nan),
             "ate_m": report["errors"]["trajectory_m"]["ate_rmse"],
             "seconds_per_scan": report["mapping"]["seconds_per_scan"]}
 

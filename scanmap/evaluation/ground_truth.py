@@ -132,13 +132,15 @@ def map_to_world(poses: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray,
-               scene: Scene | None = None) -> dict[str, float]:
+               scene: Scene | None = None, hits: np.ndarray | None = None
+               ) -> dict[str, float]:
     """Obstacle precision, recall, F1, coverage and free precision, and the drop-off
     measures where the raster has drop-offs (module docstring): with the `scene` the
     raster shows, on a raster of EDGE_RASTER cells drawn from it for the same band and
     slope (on the map's own 5 cm cells the true edge is placed only to within half a
     cell: a cell diagonal to a drop-off cell measures 1.41 where the drop-off's corner
-    lies 0.85 cells from its centre)."""
+    lies 0.85 cells from its centre). `hits`: (ny, nx) bool, the cells holding a hit (the
+    ramp F1's cells)."""
     truth_class = _raster_at_cells(raster.classes, raster, seg, world_from_map, -1)
     near_truth = morphology.dilate(raster.classes == RASTER_OBSTACLE)
     near_truth_at = _raster_at_cells(near_truth, raster, seg, world_from_map, False)
@@ -158,7 +160,24 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
             "free_precision": float((truth_class[free] == RASTER_FLOOR).mean()) if free.any()
             else float("nan"),
             "free_cells_on_obstacles": int((truth_class[free] == RASTER_OBSTACLE).sum()),
-            "band": list(raster.band)} | drop_off_errors(seg, drop_raster, world_from_map)
+            "band": list(raster.band)} | drop_off_errors(seg, drop_raster, world_from_map) \
+        | ramp_errors(seg, raster, world_from_map, truth_class,
+                      seg.state != floor.UNKNOWN if hits is None else hits)
+
+
+def ramp_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray,
+                truth_class: np.ndarray, hits: np.ndarray) -> dict[str, float]:
+    """The ramp F1 of the module docstring and the cells it counts (empty where the
+    raster has no sloped floor); `truth_class`: the raster's class at each map cell."""
+    if raster.slope is None or not (raster.slope > 0.0).any():
+        return {}
+    sloped = _raster_at_cells(raster.slope > 0.0, raster, seg, world_from_map, False)
+    cells = sloped & hits
+    predicted, actual = seg.is_floor[cells], truth_class[cells] == RASTER_FLOOR
+    both = int((predicted & actual).sum())
+    claims = int(predicted.sum()) + int(actual.sum())
+    return {"ramp_cells": int(cells.sum()),
+            "ramp_f1": 2.0 * both / claims if claims else float("nan")}
 
 
 def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray

@@ -211,6 +211,9 @@ def report_text(report: dict) -> str:
                          "edge within "
                          f"{g['drop_off_edge_error_cells']:.2f} cells "
                          f"({100 * g['drop_off_edge_within_one']:.0f} % within one)")
+        if "ramp_f1" in g:
+            lines.append(f"ramps: floor F1 {g['ramp_f1']:.3f} over {g['ramp_cells']} "
+                         "observed cells of sloped floor")
     return "\n".join(lines)
 
 
@@ -280,8 +283,10 @@ def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
     raster = TruthRaster.load(folder / "raster.npz")
     world_from_map = evaluation.map_to_world(estimate[usable], reference[indices[usable]])
     scene = folder / "scene.json"  # the simulated scene: the drop-off edge on finer cells
+    hits = mapper.grid.layers().nlev > 0  # the window `mapper.segment()` segmented
     errors["map"] = evaluation.map_errors(seg, raster, world_from_map,
-                                          load_scene(scene) if scene.is_file() else None)
+                                          load_scene(scene) if scene.is_file() else None,
+                                          hits)
     return errors
 
 

@@ -210,3 +210,24 @@ def test_range_errors_do_not_depend_on_the_order_of_points_or_truth(office_recor
     again, total_again = evaluation.range_errors(shuffled, truth_shuffled, recording.model)
     assert total_again == total and error.size > 0.6 * total
     np.testing.assert_array_equal(np.sort(again), np.sort(error))
+
+
+def test_ramps_scored_by_floor_f1_over_the_cells_holding_hits(hazards_raster, office_raster):
+    """`hazards` holds a ramp within max_slope (floor) and one too steep (not floor): a
+    perfect map scores 1; calling the steep ramp's cells floor costs them as false claims
+    in closed form; cells without a hit are not scored; a scene without ramps, nothing."""
+    seg = segmentation_of(hazards_raster)
+    sloped = hazards_raster.slope > 0.0
+    gentle = sloped & (hazards_raster.classes == truth.FLOOR)
+    steep = sloped & (hazards_raster.slope > hazards_raster.max_slope)
+    assert gentle.sum() > 50 and steep.sum() > 50
+    everywhere = np.ones(seg.shape, bool)
+    perfect = evaluation.map_errors(seg, hazards_raster, np.eye(4), hits=everywhere)
+    assert perfect["ramp_f1"] == 1.0 and perfect["ramp_cells"] == sloped.sum()
+    claimed = dataclasses.replace(seg, is_floor=seg.is_floor | steep)
+    errors = evaluation.map_errors(claimed, hazards_raster, np.eye(4), hits=everywhere)
+    assert errors["ramp_f1"] == pytest.approx(2 * gentle.sum() / (2 * gentle.sum() + steep.sum()))
+    unseen = evaluation.map_errors(claimed, hazards_raster, np.eye(4), hits=~steep)
+    assert unseen["ramp_f1"] == 1.0 and unseen["ramp_cells"] == (sloped & ~steep).sum()
+    assert "ramp_f1" not in evaluation.map_errors(segmentation_of(office_raster),
+                                                  office_raster, np.eye(4))
