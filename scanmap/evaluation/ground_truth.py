@@ -26,6 +26,11 @@
   scene where it is at hand); false drop-offs: the map's
   DROP_OFF cells on true floor more than a cell (1.5 cells, diagonals included) from any
   true drop-off.
+* ramps (where the raster has sloped floor): the F1 of the map's floor (`is_floor`)
+  against the true floor (a ramp within the raster's max_slope; one steeper is not
+  floor) over the map's cells on sloped floor that hold a hit (`hits`; without them,
+  those it does not call unknown), as `benchmarks.bench_hazards` scores ideal scans;
+  and of the traversable cells (floor and FREE: not a step's edge, its band seen).
 """
 
 from __future__ import annotations
@@ -173,11 +178,16 @@ def ramp_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarr
         return {}
     sloped = _raster_at_cells(raster.slope > 0.0, raster, seg, world_from_map, False)
     cells = sloped & hits
-    predicted, actual = seg.is_floor[cells], truth_class[cells] == RASTER_FLOOR
-    both = int((predicted & actual).sum())
+    actual = truth_class[cells] == RASTER_FLOOR
+    traversable = seg.is_floor & (seg.state == floor.FREE)
+    return {"ramp_cells": int(cells.sum()), "ramp_f1": f1_score(seg.is_floor[cells], actual),
+            "ramp_traversable_f1": f1_score(traversable[cells], actual)}
+
+
+def f1_score(predicted: np.ndarray, actual: np.ndarray) -> float:
+    """F1 of boolean `predicted` against `actual` (NaN where neither claims anything)."""
     claims = int(predicted.sum()) + int(actual.sum())
-    return {"ramp_cells": int(cells.sum()),
-            "ramp_f1": 2.0 * both / claims if claims else float("nan")}
+    return 2.0 * int((predicted & actual).sum()) / claims if claims else float("nan")
 
 
 def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray

@@ -212,8 +212,9 @@ def report_text(report: dict) -> str:
                          f"{g['drop_off_edge_error_cells']:.2f} cells "
                          f"({100 * g['drop_off_edge_within_one']:.0f} % within one)")
         if "ramp_f1" in g:
-            lines.append(f"ramps: floor F1 {g['ramp_f1']:.3f} over {g['ramp_cells']} "
-                         "observed cells of sloped floor")
+            lines.append(f"ramps: floor F1 {g['ramp_f1']:.3f}, traversable F1 "
+                         f"{g['ramp_traversable_f1']:.3f} over {g['ramp_cells']} observed "
+                         "cells of sloped floor")
     return "\n".join(lines)
 
 

@@ -214,8 +214,10 @@ def test_range_errors_do_not_depend_on_the_order_of_points_or_truth(office_recor
 
 def test_ramps_scored_by_floor_f1_over_the_cells_holding_hits(hazards_raster, office_raster):
     """`hazards` holds a ramp within max_slope (floor) and one too steep (not floor): a
-    perfect map scores 1; calling the steep ramp's cells floor costs them as false claims
-    in closed form; cells without a hit are not scored; a scene without ramps, nothing."""
+    perfect map scores 1, floor and traversable; a step's edge marked on the ramp (floor,
+    but OBSTACLE) costs only the traversable F1; calling the steep ramp's cells floor
+    costs them as false claims, in closed form; cells without a hit are not scored; a
+    scene without ramps, nothing."""
     seg = segmentation_of(hazards_raster)
     sloped = hazards_raster.slope > 0.0
     gentle = sloped & (hazards_raster.classes == truth.FLOOR)
@@ -223,7 +225,16 @@ def test_ramps_scored_by_floor_f1_over_the_cells_holding_hits(hazards_raster, of
     assert gentle.sum() > 50 and steep.sum() > 50
     everywhere = np.ones(seg.shape, bool)
     perfect = evaluation.map_errors(seg, hazards_raster, np.eye(4), hits=everywhere)
-    assert perfect["ramp_f1"] == 1.0 and perfect["ramp_cells"] == sloped.sum()
+    assert perfect["ramp_f1"] == perfect["ramp_traversable_f1"] == 1.0
+    assert perfect["ramp_cells"] == sloped.sum()
+    edge = np.zeros(seg.shape, bool)
+    edge[np.nonzero(gentle)[0][:10], np.nonzero(gentle)[1][:10]] = True
+    state = np.where(edge, OBSTACLE, seg.state).astype(np.uint8)  # floor, a step's edge
+    errors = evaluation.map_errors(dataclasses.replace(seg, state=state), hazards_raster,
+                                   np.eye(4), hits=everywhere)
+    assert errors["ramp_f1"] == 1.0
+    kept = gentle.sum() - 10
+    assert errors["ramp_traversable_f1"] == pytest.approx(2 * kept / (kept + gentle.sum()))
     claimed = dataclasses.replace(seg, is_floor=seg.is_floor | steep)
     errors = evaluation.map_errors(claimed, hazards_raster, np.eye(4), hits=everywhere)
     assert errors["ramp_f1"] == pytest.approx(2 * gentle.sum() / (2 * gentle.sum() + steep.sum()))
