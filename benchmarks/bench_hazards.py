@@ -30,8 +30,9 @@ slope), but for the whole pipeline's row. Rows:
   drop-off (on the same raster), after the worst scan: on `hazards`, over the placements
   and over the random rooms (a robot that sees a drop-off where there is none will not
   drive there).
-* ramp F1: floor (traversable surface) against truth over the observed cells (any hit)
-  of the sloped floor regions, a ramp within max_slope and one steeper.
+* ramp F1: floor (`is_floor`) against truth over the observed cells (any hit) of the
+  sloped floor regions, a ramp within max_slope and one steeper; the traversable F1 the
+  same of floor and FREE (not a step's edge, its band seen).
 * placed anew: the same scene shifted within a cell and turned (`Scene.moved`), so its
   edges fall inside cells and at angles to them, not on the cells' boundaries as built:
   the worst free drop-off count after any scan, the worst edge, the least and the mean
