@@ -32,7 +32,9 @@ slope), but for the whole pipeline's row. Rows:
   drive there).
 * ramp F1: floor (`is_floor`) against truth over the observed cells (any hit) of the
   sloped floor regions, a ramp within max_slope and one steeper; the traversable F1 the
-  same of floor and FREE (not a step's edge, its band seen).
+  same of floor and FREE (not a step's edge, its band seen), but for the cells a face
+  higher than a step crosses (`evaluation.face_cells`: the truth, sampled at the
+  cell's centre, has no face between two floors).
 * placed anew: the same scene shifted within a cell and turned (`Scene.moved`), so its
   edges fall inside cells and at angles to them, not on the cells' boundaries as built:
   the worst free drop-off count after any scan, the worst edge, the least and the mean
@@ -87,7 +89,12 @@ import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
 from benchmarks.random_rooms import mixed_room, people_room, ramp_room, random_room, step_room
-from scanmap.evaluation.ground_truth import EDGE_RASTER, drop_off_errors, f1_score
+from scanmap.evaluation.ground_truth import (
+    EDGE_RASTER,
+    drop_off_errors,
+    f1_score,
+    face_cells,
+)
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.grid.rays import scan_rays
 from scanmap.grid.unlit import unlit_floor
@@ -205,8 +212,9 @@ def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
 
 def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene,
             traversable: bool = False) -> float:
-    """F1 of floor (with `traversable`, floor and FREE: not a step's edge, its band seen)
-    against true floor over the observed cells of the sloped regions (NaN without any)."""
+    """F1 of floor against true floor over the observed cells of the sloped regions (NaN
+    without any); with `traversable`, of floor and FREE (not a step's edge, its band
+    seen), but for the cells a face higher than a step crosses (`face_cells`)."""
     ny, nx = seg.shape
     x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
     y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
@@ -218,7 +226,10 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
     cells = ramps & hits
     if not cells.any():  # no ramp, or none seen
         return float("nan")
-    floor = seg.is_floor & (seg.state == FREE) if traversable else seg.is_floor
+    floor = seg.is_floor
+    if traversable:
+        floor = floor & (seg.state == FREE)
+        cells &= ~face_cells(scene, seg, np.eye(4), cells, ROBOT.step_height)
     return f1_score(floor[cells], truth[cells] == TRUE_FLOOR)
 
 

@@ -30,7 +30,12 @@
   against the true floor (a ramp within the raster's max_slope; one steeper is not
   floor) over the map's cells on sloped floor that hold a hit (`hits`; without them,
   those it does not call unknown), as `benchmarks.bench_hazards` scores ideal scans;
-  and of the traversable cells (floor and FREE: not a step's edge, its band seen).
+  and of the traversable cells (floor and FREE: not a step's edge, its band seen) over
+  the same cells but those a face higher than a step crosses, where the scene is at
+  hand (`face_cells`: a ramp's side or end above the floor beside holds floor the robot
+  reaches on one side and a face it cannot cross on the other; the raster, sampled at
+  the cell's centre, calls it floor, and a map that blocks the face must block one of
+  the two cells it runs between).
 """
 
 from __future__ import annotations
@@ -167,21 +172,44 @@ def map_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarra
             "free_cells_on_obstacles": int((truth_class[free] == RASTER_OBSTACLE).sum()),
             "band": list(raster.band)} | drop_off_errors(seg, drop_raster, world_from_map) \
         | ramp_errors(seg, raster, world_from_map, truth_class,
-                      seg.state != floor.UNKNOWN if hits is None else hits)
+                      seg.state != floor.UNKNOWN if hits is None else hits, scene)
 
 
 def ramp_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray,
-                truth_class: np.ndarray, hits: np.ndarray) -> dict[str, float]:
-    """The ramp F1 of the module docstring and the cells it counts (empty where the
+                truth_class: np.ndarray, hits: np.ndarray, scene: Scene | None = None
+                ) -> dict[str, float]:
+    """The ramp F1s of the module docstring and the cells they count (empty where the
     raster has no sloped floor); `truth_class`: the raster's class at each map cell."""
     if raster.slope is None or not (raster.slope > 0.0).any():
         return {}
     sloped = _raster_at_cells(raster.slope > 0.0, raster, seg, world_from_map, False)
     cells = sloped & hits
-    actual = truth_class[cells] == RASTER_FLOOR
+    actual = truth_class == RASTER_FLOOR
+    faces = np.zeros(seg.shape, bool) if scene is None else face_cells(
+        scene, seg, world_from_map, cells, raster.band[0])
+    clear = cells & ~faces
     traversable = seg.is_floor & (seg.state == floor.FREE)
-    return {"ramp_cells": int(cells.sum()), "ramp_f1": f1_score(seg.is_floor[cells], actual),
-            "ramp_traversable_f1": f1_score(traversable[cells], actual)}
+    return {"ramp_cells": int(cells.sum()), "ramp_face_cells": int(faces.sum()),
+            "ramp_f1": f1_score(seg.is_floor[cells], actual[cells]),
+            "ramp_traversable_f1": f1_score(traversable[clear], actual[clear])}
+
+
+def face_cells(scene: Scene, seg: Segmentation, world_from_map: np.ndarray,
+               cells: np.ndarray, step: float, samples: int = 6) -> np.ndarray:
+    """Of `cells` (a mask of `seg`'s), those a face higher than `step` crosses: the
+    scene's floor at `samples` x `samples` points of the cell spans more than `step` (a
+    15 deg slope spans 1.9 cm across a 5 cm cell's diagonal)."""
+    rows, cols = np.nonzero(cells)
+    within = (np.arange(samples) + 0.5) / samples
+    dx, dy = (a.ravel() for a in np.meshgrid(within, within))
+    x = seg.origin[0] + (cols[:, None] + dx) * seg.resolution
+    y = seg.origin[1] + (rows[:, None] + dy) * seg.resolution
+    world = transform_points(world_from_map, np.column_stack(
+        [x.ravel(), y.ravel(), np.zeros(x.size)]))
+    heights = scene.floor_at(world[:, 0], world[:, 1])[0].reshape(len(rows), -1)
+    out = np.zeros(seg.shape, bool)
+    out[rows, cols] = np.ptp(heights, axis=1) > step
+    return out
 
 
 def f1_score(predicted: np.ndarray, actual: np.ndarray) -> float:

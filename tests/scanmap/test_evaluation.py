@@ -12,7 +12,7 @@ from scanmap.navigation import morphology
 from scanmap.navigation.floor import DROP_OFF, FREE, OBSTACLE, UNKNOWN, RobotShape, Segmentation
 from scanmap_driver.processing import recording_scans
 from scanmap_driver.recording import Recording
-from scanmap_driver.sim import builtin_scene, truth_raster
+from scanmap_driver.sim import Scene, builtin_scene, truth_raster
 from scanmap_driver.sim import raster as truth
 from scanmap_driver.sim.truth import ScanTruth, truth_path
 from scanmap_driver.transforms import se2_to_pose
@@ -242,3 +242,61 @@ def test_ramps_scored_by_floor_f1_over_the_cells_holding_hits(hazards_raster, of
     assert unseen["ramp_f1"] == 1.0 and unseen["ramp_cells"] == (sloped & ~steep).sum()
     assert "ramp_f1" not in evaluation.map_errors(segmentation_of(office_raster),
                                                   office_raster, np.eye(4))
+
+
+def ramp_scene(height: float, gradient: float) -> Scene:
+    """The hazards room without its hazards and one floor region 0.5 m square from x = 1.12
+    m (inside a 5 cm cell) and y = -0.25: `height` at its centre, rising `gradient` along x."""
+    data = builtin_scene("hazards").to_dict()
+    data["floor_regions"] = [{"center": [1.37, 0.0], "size": [0.5, 0.5], "height": height,
+                              "gradient": [gradient, 0.0], "name": "region"}]
+    return Scene.from_dict(data)
+
+
+@pytest.mark.parametrize("height, gradient, faces", [
+    (0.10, 0.0, True), (0.03, 0.0, False),
+    (0.25 * np.tan(0.26) + 2e-4, np.tan(0.26), True),
+    (0.25 * np.tan(0.052) + 2e-4, np.tan(0.052), False)])
+def test_a_face_higher_than_a_step_is_found_in_the_cells_it_crosses(height, gradient, faces):
+    """A platform 10 cm high has faces in the cells its sides cross, one 3 cm high none; a
+    15 deg ramp rising from the floor has them at its high end, 13 cm up, and where its
+    sides stand higher than a step, never inside (its slope alone spans 1.9 cm across a
+    cell); a 3 deg one, 2.6 cm at its high end, has none."""
+    scene = ramp_scene(height, gradient)
+    seg = segmentation_of(truth_raster(scene), origin=(0.0, -1.0))
+    ny, nx = seg.shape
+    every = np.ones((ny, nx), bool)
+    found = evaluation.face_cells(scene, seg, np.eye(4), every, 0.05)
+    rows, cols = np.nonzero(found)
+    if not faces:
+        assert not found.any()
+        return
+    x = seg.origin[0] + (cols + 0.5) * seg.resolution
+    y = seg.origin[1] + (rows + 0.5) * seg.resolution
+    assert found.sum() >= 10
+    # every found cell holds one of the region's edges: x = 1.12 or 1.62, y = -0.25 or 0.25
+    near_x = np.minimum(np.abs(x - 1.12), np.abs(x - 1.62)) <= 0.025
+    near_y = np.minimum(np.abs(y + 0.25), np.abs(y - 0.25)) <= 0.025
+    assert ((near_x & (np.abs(y) <= 0.275)) | (near_y & (np.abs(x - 1.37) <= 0.275))).all()
+    high_end = near_x & (np.abs(x - 1.62) <= 0.025) & (np.abs(y) < 0.2)
+    assert high_end.sum() >= 8  # the 0.5 m high end's cells, all of them
+
+
+def test_the_traversable_ramp_f1_leaves_out_the_cells_a_face_crosses():
+    """`hazards`' ramp up to its 10 cm platform stands higher than a step at its sides'
+    upper part; shifted off the cells' boundaries, its sides cross cells. Those cells
+    blocked (a step's edge, OBSTACLE) cost the traversable F1 on the raster alone, and
+    nothing with the scene at hand."""
+    scene = builtin_scene("hazards").moved(0.02, 0.013, 0.0)
+    hazards_raster = truth_raster(scene)
+    seg = segmentation_of(hazards_raster)
+    gentle = (hazards_raster.slope > 0.0) & (hazards_raster.classes == truth.FLOOR)
+    faces = evaluation.face_cells(scene, seg, np.eye(4), gentle, hazards_raster.band[0])
+    assert faces.sum() >= 5
+    blocked = dataclasses.replace(seg, state=np.where(faces, OBSTACLE, seg.state).astype(
+        np.uint8))
+    everywhere = np.ones(seg.shape, bool)
+    alone = evaluation.map_errors(blocked, hazards_raster, np.eye(4), hits=everywhere)
+    with_scene = evaluation.map_errors(blocked, hazards_raster, np.eye(4), scene, everywhere)
+    assert alone["ramp_traversable_f1"] < 1.0 == with_scene["ramp_traversable_f1"]
+    assert with_scene["ramp_face_cells"] >= faces.sum()
