@@ -195,12 +195,14 @@ def ramp_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarr
 
 
 def face_cells(scene: Scene, seg: Segmentation, world_from_map: np.ndarray,
-               cells: np.ndarray, step: float, samples: int = 6) -> np.ndarray:
-    """Of `cells` (a mask of `seg`'s), those a face higher than `step` crosses: the
-    scene's floor at `samples` x `samples` points of the cell spans more than `step` (a
-    15 deg slope spans 1.9 cm across a 5 cm cell's diagonal)."""
+               cells: np.ndarray, step: float, samples: int = 7) -> np.ndarray:
+    """Of `cells` (a mask of `seg`'s), those a face higher than `step` crosses or bounds:
+    the scene's floor at `samples` x `samples` points of the cell, its edges included,
+    spans more than `step` (a 15 deg slope spans 1.9 cm across a 5 cm cell's diagonal).
+    Its edges count: a face a few mm inside a cell puts its hits there, and the samples
+    of the cell's inside all lie on one side of it."""
     rows, cols = np.nonzero(cells)
-    within = (np.arange(samples) + 0.5) / samples
+    within = np.linspace(0.0, 1.0, samples)
     dx, dy = (a.ravel() for a in np.meshgrid(within, within))
     x = seg.origin[0] + (cols[:, None] + dx) * seg.resolution
     y = seg.origin[1] + (rows[:, None] + dy) * seg.resolution
