@@ -36,6 +36,21 @@ Insertion is one scan at a time, in three passes:
    a gap still loses the passes through the gap); a level loses at most `max_misses`
    per scan. A level whose log-odds fall to 0 (p = 0.5) is removed: the space is free,
    and a new hit there is occupied at once.
+   The laser's rays, from its emitter to the points it lit, are traced too when given:
+   the light's path was free as well, and from the emitter (0.5 m below the camera on
+   the reference scanner) they cross the low heights near the robot that the camera's
+   rays pass above (where a person stood 1 m off, half the cells holding its thin
+   levels stayed obstacles for want of a camera ray through them). Nearly level, they
+   run along faces at their heights for metres, so they pass only a level seen in
+   fewer than `static_scans` scans, only within `pass_radius` of its mean hit, and not
+   along a face (`_grazes_static` within LASER_GRAZE_SIN of the ray's direction, read
+   from the neighbouring cells' levels of any age): through the free part of the cells
+   a face cuts they eroded walls (people rooms 3 and 5: 29 cell-scans, the static ones;
+   room 22: 127, a cabinet's side seen in one scan, then passed at 13 deg). Nor do
+   they mark the heights they cross seen: the segmentation reads that mask as what the
+   camera's rays showed (floor they passed just above unlit, space below the floor by
+   a hole), and the laser's, reaching the floor at a third of the camera's slope, left
+   drop-offs reaching up to 2.9 cells past their edge for a scan (ramp rooms 1-24).
    Rays from one origin (one camera frame) converge there and share their last cells:
    the cell remembers the heights the current origin's rays marked (VKEY, VMASK), and a
    ray stops after `bundle_run` cells in a row that a sibling ray already updated with
@@ -64,6 +79,8 @@ it) and lev_flag.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -78,6 +95,7 @@ N_FLOAT_FIELDS = 8
 # Fields of the integer level record lev_n[li, :]; SCANS counts the scans that hit it.
 HITS, PASSES, STAMP, SCANS = 0, 1, 2, 3
 N_INT_FIELDS = 4
+LASER_GRAZE_SIN = math.sin(math.radians(30.0))  # the laser's rays along a face (module)
 HIT_FLAG = 0x80  # lev_flag bit: hit in scan `stamp`; the low bits count its misses
 # Fields of cells[off]: observed-height mask, last scan id, last scan whose laser line
 # crossed the cell's floor unlit (`scanmap.grid.unlit`; 0 never), and the ray-bundle
@@ -533,7 +551,7 @@ _NEIGHBOURS = np.array([(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dx
 
 @njit(cache=True, nogil=True, _nrt=False)
 def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
-                   levels, static_scans) -> bool:
+                   levels, static_scans, graze) -> bool:
     """A ray (x-y direction path[4:6]) that runs along a static face through level record
     li of cell (ix, iy): one mean hit cannot tell a ray beside a face from one through it,
     so the face is read from the neighbouring cells (see _pass_cell).
@@ -541,13 +559,14 @@ def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp,
     Their static levels (hit in `static_scans` scans or more) that reach the ray's heights
     [za, zb] (within a height bin) give one mean hit a cell; it takes two or more. The ray
     runs along the face when one of them lies, from the level's own mean hit, within
-    `graze_angle` of the ray's direction (ahead or behind, at least half a cell away) and
-    the others all lie on one side of the ray's line: a face crossed steeply has its cells
-    on both sides of the ray, a blob (a floor, a box's top at the ray's heights) all around
-    it, while beside a corner (a cabinet's) the other face lies on one side only. One
-    static neighbour alone (a person's outline) is too little to tell a face.
+    the angle whose sine is `graze` of the ray's direction (ahead or behind, at least half
+    a cell away) and the others all lie on one side of the ray's line: a face crossed
+    steeply has its cells on both sides of the ray, a blob (a floor, a box's top at the
+    ray's heights) all around it, while beside a corner (a cabinet's) the other face lies
+    on one side only. One static neighbour alone (a person's outline) is too little to
+    tell a face.
     """
-    res, tol, graze = fp[FP_RES], fp[FP_MASK_DZ], fp[FP_GRAZE_SIN]
+    res, tol = fp[FP_RES], fp[FP_MASK_DZ]
     dx, dy = path[4], path[5]
     length = np.hypot(dx, dy)
     if length == 0.0 or graze <= 0.0:
@@ -594,7 +613,7 @@ def _beside_seen_in(lev_f, lev_n, nlev, tile_index, ix, iy, lo, hi, tol, shift, 
 
 @njit(cache=True, nogil=True, _nrt=False)
 def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bits, path, fp,
-               shift, levels, max_miss, static_scans, scan, through) -> int:
+               shift, levels, max_miss, static_scans, scan, through, from_laser) -> int:
     """A ray spanning heights [za, zb] crossed cell off: clear the levels it passed through.
 
     A level not hit in this scan takes a miss; one the ray only entered, from above or
@@ -628,13 +647,19 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
         if not crossed and not _enters(lo, hi, za, zb):
             continue
         _touch(lev_n, lev_flag, li, scan)
+        if from_laser and (np.int64(lev_n[li, SCANS]) >= static_scans or segment_distance(
+                lev_f[li, MX], lev_f[li, MY], path[0], path[1], path[2], path[3])
+                > fp[FP_PASS_RADIUS] or _grazes_static(
+                    lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
+                    levels, 1, LASER_GRAZE_SIN)):
+            continue  # a laser ray: only near the mean hit of a level seen briefly
         hit_now = lev_flag[li] & HIT_FLAG
         if not hit_now and _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, path,
                                           fp, shift, levels, static_scans):
             continue
         if not hit_now and 2 * np.int64(lev_n[li, SCANS]) >= static_scans \
                 and _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path,
-                                   fp, shift, levels, static_scans):
+                                   fp, shift, levels, static_scans, fp[FP_GRAZE_SIN]):
             continue
         if not crossed:  # into the level's top or bottom, not through its middle
             # The part the ray passed through is free: trim it off, unless this scan hit
@@ -677,27 +702,27 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
 
 @njit(cache=True, nogil=True)
 def insert_scan(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
-                tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
-                lev_flag: np.ndarray, nlev: np.ndarray, cells: np.ndarray, fp: np.ndarray,
-                ip: np.ndarray) -> tuple[int, int, int]:
-    """Insert one scan (rays with cls == POINT_OK); returns (hits, cleared, last ray key)."""
+                lasers: np.ndarray, laser_cls: np.ndarray, tile_index: np.ndarray,
+                lev_f: np.ndarray, lev_n: np.ndarray, lev_flag: np.ndarray, nlev: np.ndarray,
+                cells: np.ndarray, fp: np.ndarray, ip: np.ndarray) -> tuple[int, int, int]:
+    """Insert one scan: the hits and camera rays from `origins` with cls == POINT_OK and,
+    where `lasers` holds a row per point (else none), the laser's rays from its emitter
+    with laser_cls == POINT_OK; returns (hits, cleared, last ray key)."""
     n = points.shape[0]
-    return _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, cells,
-                        fp, ip, np.empty(n, np.int64), np.empty(n, np.float64),
-                        np.empty(6, np.float64))
+    return _insert_scan(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev_n,
+                        lev_flag, nlev, cells, fp, ip, np.empty(n, np.int64),
+                        np.empty(n, np.float64), np.empty(6, np.float64))
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, cells, fp, ip,
-                 fresh, fresh_z, path) -> tuple[int, int, int]:
+def _insert_scan(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev_n, lev_flag,
+                 nlev, cells, fp, ip, fresh, fresh_z, path) -> tuple[int, int, int]:
     """`insert_scan` with its scratch: (N,) cells where a hit started a level and the
     height it started at, and (6,) a ray's x-y segment in a cell, from the cell's centre,
     and its x-y direction (see _beside_static)."""
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
-    shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
-    bundle_run, static_scans = ip[IP_RUN], ip[IP_STATIC]
-    see_through = fp[FP_SEE_THROUGH]
+    shift, levels = ip[IP_SHIFT], ip[IP_LEVELS]
     count_visits = ip[IP_VISITS] != 0
     mask = (1 << shift) - 1
     scan = np.uint32(ip[IP_SCAN])
@@ -721,10 +746,38 @@ def _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev,
             cells[off, VISITS] += np.uint64(1)
         cells[off, SCAN] = scan64
         n_hits += 1
-    n_cleared = 0
     key = np.uint64(ip[IP_KEY])
+    n_cleared, key = _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag,
+                                 nlev, cells, fp, ip, key, path, False)  # pass 2
+    if lasers.shape[0] == points.shape[0]:
+        cleared, key = _trace_rays(points, lasers, laser_cls, tile_index, lev_f, lev_n, lev_flag,
+                                   nlev, cells, fp, ip, key, path, True)
+        n_cleared += cleared
+    for i in range(n_fresh):  # pass 3: merge new levels unless their gap was seen free
+        off = fresh[i]
+        _consolidate(lev_f, lev_n, lev_flag, nlev, off, fresh_z[i], cells[off, SEEN], z_min,
+                     mdz, levels)
+    return n_hits, n_cleared, np.int64(key)
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, cells, fp, ip,
+                key, path, from_laser) -> tuple[int, np.uint64]:
+    """Pass 2 of `_insert_scan`: the rays from `origins` to the points, each traced from
+    the hit back to its origin (`from_laser`: the laser's, see the module); returns the
+    levels cleared and the last bundle key."""
+    res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
+    z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
+    shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
+    bundle_run, static_scans = ip[IP_RUN], ip[IP_STATIC]
+    see_through = fp[FP_SEE_THROUGH]
+    count_visits = ip[IP_VISITS] != 0
+    mask = (1 << shift) - 1
+    scan = np.uint32(ip[IP_SCAN])
+    scan64 = np.uint64(ip[IP_SCAN])
+    n_cleared = 0
     group = (-1, -1, -1)
-    for i in range(points.shape[0]):  # pass 2: rays, traced from the hit back to the origin
+    for i in range(points.shape[0]):
         if cls[i] != POINT_OK:
             continue
         ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
@@ -766,7 +819,8 @@ def _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev,
                         cells[off, VKEY] = key
                         cells[off, VMASK] = 0
                     cells[off, VMASK] |= bits
-                    cells[off, SEEN] |= bits
+                    if not from_laser:
+                        cells[off, SEEN] |= bits
                     if count_visits and cells[off, SCAN] != scan64:
                         cells[off, VISITS] += np.uint64(1)
                     cells[off, SCAN] = scan64
@@ -785,7 +839,8 @@ def _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev,
                             n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index,
                                                     off, ix, iy, za, zb, clear, path, fp,
                                                     shift, levels, max_miss, static_scans,
-                                                    scan, t_in * length >= see_through)
+                                                    scan, t_in * length >= see_through,
+                                                    from_laser)
             b_in = b_out
             if tmx < tmy:
                 ix += sx
@@ -795,11 +850,7 @@ def _insert_scan(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev,
                 iy += sy
                 t_in = tmy
                 tmy += tdy
-    for i in range(n_fresh):  # pass 3: merge new levels unless their gap was seen free
-        off = fresh[i]
-        _consolidate(lev_f, lev_n, lev_flag, nlev, off, fresh_z[i], cells[off, SEEN], z_min,
-                     mdz, levels)
-    return n_hits, n_cleared, np.int64(key)
+    return n_cleared, key
 
 
 @njit(cache=True, nogil=True)

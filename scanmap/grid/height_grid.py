@@ -98,6 +98,18 @@ class CellLayers:
         return (used & (hi > low) & (lo < high)).any(axis=2)
 
 
+def _per_point(name: str, sources: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """`insert`'s ray origins as one contiguous (N, 3) row per point: given so, or one
+    (3,) for all."""
+    sources = np.asarray(sources, dtype=np.float64)
+    if sources.shape == (3,):
+        sources = np.broadcast_to(sources, shape)
+    if sources.shape != shape:
+        raise MapError(f"HeightGrid.insert: {name} must be (3,) or {shape}, "
+                       f"got {sources.shape}")
+    return np.ascontiguousarray(sources)
+
+
 def _path(stood: np.ndarray, spacing: float) -> np.ndarray:
     """The finite (x, y) rows of `stood`, each at least `spacing` from the last one kept,
     and the last row."""
@@ -264,9 +276,16 @@ class HeightGrid:
             self._allocate(np.concatenate(tiles))
 
     def insert(self, points: np.ndarray, origins: np.ndarray, stamp: float,
-               stood: np.ndarray | None = None, unlit: np.ndarray | None = None
-               ) -> InsertStats:
+               stood: np.ndarray | None = None, unlit: np.ndarray | None = None,
+               lasers: np.ndarray | None = None) -> InsertStats:
         """Fuse one scan: points (N, 3) in map, ray origins (N, 3) or one (3,), time (s).
+
+        lasers: where the light of each point came from, (N, 3) or one (3,) in map (the
+        laser's emitter, `scanmap.grid.rays.laser_origins`): the light's path to a point
+        was free too, and clears levels seen briefly that lay on it (see
+        `scanmap.grid._kernels`; below the camera, the emitter's rays cross the low heights
+        near the robot that the camera's rays pass above). Rays from an emitter beyond
+        the extent or window are left out.
 
         stood: (M, 2+) x, y where the robot stood during the scan (its path; default the
         middle of the ray origins). unlit: (K, 2+) x, y of floor the scan's laser lines
@@ -278,13 +297,9 @@ class HeightGrid:
         points = np.ascontiguousarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 3:
             raise MapError(f"HeightGrid.insert: points must be (N, 3), got {points.shape}")
-        origins = np.asarray(origins, dtype=np.float64)
-        if origins.shape == (3,):
-            origins = np.broadcast_to(origins, points.shape)
-        if origins.shape != points.shape:
-            raise MapError(f"HeightGrid.insert: origins must be (3,) or {points.shape}, "
-                           f"got {origins.shape}")
-        origins = np.ascontiguousarray(origins)
+        origins = _per_point("origins", origins, points.shape)
+        lasers = np.zeros((0, 3)) if lasers is None else _per_point("lasers", lasers,
+                                                                     points.shape)
         if not math.isfinite(stamp):
             raise MapError(f"HeightGrid.insert: stamp must be finite, got {stamp}")
         c = self.config
@@ -293,6 +308,8 @@ class HeightGrid:
             span = c.corner + c.tiles_per_side * c.tile_size
             bounds = np.array([c.corner, c.corner, span, span])
             cls = gk.classify_points(points, origins, bounds, window, c.max_range)
+            laser_cls = gk.classify_points(points, lasers, bounds, window, c.max_range) \
+                if len(lasers) else cls
             outside = cls == gk.POINT_OUTSIDE_EXTENT
             if outside.any():
                 i = int(np.argmax(outside))
@@ -302,21 +319,22 @@ class HeightGrid:
                     f"{origins[i].tolist()}); nothing was inserted")
             new_tiles = 0
             buffer = np.empty((256, 2), np.int64)
-            while True:
-                count = gk.collect_missing_tiles(points, origins, cls, self._tile_index,
-                                                 c.resolution, c.tile_cells, c.corner,
-                                                 c.corner, buffer)
-                found = buffer if count < 0 else buffer[:count]
-                self._allocate(found)
-                new_tiles += len(found)
-                if count >= 0:
-                    break
+            for sources, valid in ((origins, cls), (lasers, laser_cls))[:1 + bool(len(lasers))]:
+                while True:
+                    count = gk.collect_missing_tiles(points, sources, valid,
+                                                     self._tile_index, c.resolution,
+                                                     c.tile_cells, c.corner, c.corner, buffer)
+                    found = buffer if count < 0 else buffer[:count]
+                    self._allocate(found)
+                    new_tiles += len(found)
+                    if count >= 0:
+                        break
             self._scan_times.append(float(stamp))
             ip = np.array([self._shift, c.levels, c.max_misses, len(self._scan_times) - 1,
                            self._ray_key, c.bundle_run, c.static_scans,
                            int(self.count_visits)], np.int64)
-            hits, cleared, self._ray_key = gk.insert_scan(points, origins, cls,
-                                                          self._tile_index,
+            hits, cleared, self._ray_key = gk.insert_scan(points, origins, cls, lasers,
+                                                          laser_cls, self._tile_index,
                                                           *self._flat_pools(), self._fp, ip)
             if unlit is not None:  # also when empty: compiled by the warm-up
                 *_, cells = self._flat_pools()

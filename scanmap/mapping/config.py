@@ -51,6 +51,9 @@ class MapperConfig:
       (`SubmapRebuilder`: 0.23 s for 1000 of the 3-D scanner's scans instead of 5.1 s);
       None fuses every scan's kept rays again (`GridRebuilder`: exact, slow). A rolling
       window (`grid.window`) always rebuilds from rays.
+    laser_rays: clear space along the laser's rays (emitter to point) as well as the
+      camera's (`HeightGrid.insert`'s `lasers`): a person who walked on clears where only
+      the emitter's lower rays cross the heights it stood in.
     """
 
     grid: GridConfig = field(default_factory=GridConfig)
@@ -65,6 +68,7 @@ class MapperConfig:
     keep_points: float | None = None
     resume_scans: int = 3
     rebuild_submap_scans: int | None = 25
+    laser_rays: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.max_age) and self.max_age > 0):
@@ -82,6 +86,9 @@ class MapperConfig:
         if submap is not None and not (isinstance(submap, int) and submap >= 1):
             raise MapError(f"MapperConfig.rebuild_submap_scans: expected None or an "
                            f"integer >= 1, got {submap!r}")
+        if not isinstance(self.laser_rays, bool):
+            raise MapError(f"MapperConfig.laser_rays: expected true or false, "
+                           f"got {self.laser_rays!r}")
 
     def to_dict(self) -> dict:
         """Plain JSON-able values."""

@@ -39,6 +39,7 @@ files.
 from __future__ import annotations
 
 import collections
+import itertools
 import math
 import os
 import threading
@@ -52,7 +53,7 @@ import numpy as np
 from scanmap.graph import LoopCloser
 from scanmap.graph.localise import Localisation, NotLocalised, Session
 from scanmap.grid.height_grid import HeightGrid, InsertStats
-from scanmap.grid.rays import scan_rays
+from scanmap.grid.rays import laser_origins, scan_rays
 from scanmap.grid.unlit import unlit_floor
 from scanmap.io.trajectory import Trajectory
 from scanmap.mapping.config import MapperConfig
@@ -280,19 +281,20 @@ class Mapper:
             scan = scan.select(~stray)
         poses = frame_poses(scan, pose)
         points, origins = scan_rays(scan, self.model, poses)
+        lasers = laser_origins(scan, self.model, poses) if c.laser_rays else None
         unlit = unlit_floor(scan, self.model, poses)
         last = poses if poses.ndim == 2 else poses[scan.frame_index.max()]
         if c.grid.window is not None:
             self.grid.recenter(float(last[0, 3]), float(last[1, 3]))
         stats = self.grid.insert(points, origins, float(scan.time.max()),
                                  stood=poses[..., :2, 3].reshape(-1, 2),  # its whole path
-                                 unlit=unlit)
+                                 unlit=unlit, lasers=lasers)
         self._position = (float(last[0, 3]), float(last[1, 3]))
         self._recent.append((points, scan.range_sigma))
         if self.loop_closer is not None:
             self._contributions[-1] = scan_contribution(points, origins, pose,
                                                         float(scan.time.max()),
-                                                        c.grid.resolution, unlit)
+                                                        c.grid.resolution, unlit, lasers)
         if c.keep_points is not None:
             keep = one_per_voxel(points, c.keep_points)
             self._kept.append((points[keep].astype(np.float32), scan.colors[keep]))
@@ -409,7 +411,10 @@ class Mapper:
         kept = [k for k in self._contributions if k is not None]
         empty = np.zeros((0, 3), np.float32)
         base = {} if self._base is None else {f"base_{k}": v for k, v in self._base.items()}
-        return {**self.loop_closer.state(), **base,
+        lasers = [k.lasers for k in kept]
+        emitters = {"kept_lasers": np.concatenate(lasers)} \
+            if kept and all(e is not None for e in lasers) else {}
+        return {**self.loop_closer.state(), **base, **emitters,
                 "kept_points": np.concatenate([empty, *(k.points for k in kept)]),
                 "kept_origins": np.concatenate([empty, *(k.origins for k in kept)]),
                 "kept_sizes": np.array([-1 if k is None else len(k.points)
@@ -492,7 +497,8 @@ class Mapper:
 
 def _split_kept(loops: dict[str, np.ndarray]) -> list[Contribution | None]:
     """The per-scan kept points of a map file's loop-closure arrays, as the Mapper keeps
-    them (without unlit floor in a file written before it was kept)."""
+    them (without unlit floor or laser emitters in a file written before they were
+    kept)."""
     sizes = loops["kept_sizes"]
     fused = sizes >= 0
     bounds = np.cumsum(sizes[fused])[:-1]
@@ -502,5 +508,7 @@ def _split_kept(loops: dict[str, np.ndarray]) -> list[Contribution | None]:
     unlit_sizes = loops.get("kept_unlit_sizes", np.zeros(int(fused.sum()), np.int64))
     unlit = iter(np.split(loops.get("kept_unlit", np.zeros((0, 3), np.float32)),
                           np.cumsum(unlit_sizes)[:-1]))
-    return [Contribution.of_rays(next(points), next(origins), next(stamps), next(unlit))
-            if f else None for f in fused]
+    lasers = iter(np.split(loops["kept_lasers"], bounds)) if "kept_lasers" in loops \
+        else itertools.repeat(None)
+    return [Contribution.of_rays(next(points), next(origins), next(stamps), next(unlit),
+                                 next(lasers)) if f else None for f in fused]

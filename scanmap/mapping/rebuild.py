@@ -28,29 +28,36 @@ class Contribution:
     """What a rebuild keeps of a fused scan, in base_link (float32, placed again at the
     scan's corrected pose): the rays' ends, their origins as rows of `origin_table` (a
     scan's rays start from a few camera positions, one a frame: 2 bytes a ray instead of
-    12), the scan's time, and the floor its laser lines crossed unlit
-    (`scanmap.grid.unlit`)."""
+    12), the scan's time, the floor its laser lines crossed unlit
+    (`scanmap.grid.unlit`), and the laser's emitter for each row of the table, where the
+    scan was fused with the laser's rays (`HeightGrid.insert`'s `lasers`; else none)."""
 
     points: np.ndarray  # (N, 3) float32
     origin_table: np.ndarray  # (F, 3) float32
     origin_index: np.ndarray  # (N,) uint16, or uint32 beyond 65,536 origins
     stamp: float
     unlit: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
+    laser_table: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
 
     @classmethod
     def of_rays(cls, points: np.ndarray, origins: np.ndarray, stamp: float,
-                unlit: np.ndarray | None = None) -> Contribution:
-        """From (N, 3) ray ends and origins (and (K, 3) unlit floor): each run of equal
-        origins (a frame's rays come together) becomes one row of the table."""
+                unlit: np.ndarray | None = None, lasers: np.ndarray | None = None
+                ) -> Contribution:
+        """From (N, 3) ray ends and origins (and (K, 3) unlit floor, (N, 3) laser
+        emitters): each run of rays with equal origins and emitters (a frame's rays come
+        together) becomes one row of the tables."""
         origins = np.asarray(origins, np.float32).reshape(-1, 3)
+        sources = origins if lasers is None else np.hstack(
+            [origins, np.asarray(lasers, np.float32).reshape(-1, 3)])
         starts = np.ones(len(origins), bool)
-        starts[1:] = (origins[1:] != origins[:-1]).any(axis=1)
+        starts[1:] = (sources[1:] != sources[:-1]).any(axis=1)
         index = np.cumsum(starts) - 1
         kind = np.uint16 if len(index) == 0 or index[-1] < 2**16 else np.uint32
         unlit = np.zeros((0, 3)) if unlit is None else unlit
         return cls(np.asarray(points, np.float32).reshape(-1, 3), origins[starts],
                    index.astype(kind), float(stamp),
-                   np.asarray(unlit, np.float32).reshape(-1, 3))
+                   np.asarray(unlit, np.float32).reshape(-1, 3),
+                   np.zeros((0, 3), np.float32) if lasers is None else sources[starts, 3:])
 
     @property
     def origins(self) -> np.ndarray:
@@ -58,29 +65,43 @@ class Contribution:
         return self.origin_table[self.origin_index]
 
     @property
+    def lasers(self) -> np.ndarray | None:
+        """(N, 3) float32: each ray's laser emitter; None if not kept."""
+        return self.laser_table[self.origin_index] if len(self.laser_table) else None
+
+    @property
     def nbytes(self) -> int:
         """Bytes of its arrays."""
         return self.points.nbytes + self.origin_table.nbytes + self.origin_index.nbytes \
-            + self.unlit.nbytes
+            + self.unlit.nbytes + self.laser_table.nbytes
 
     def placed(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(ends, origins) of its rays at `pose` (4x4), float64, in map."""
         return (transform_points(pose, self.points),
                 transform_points(pose, self.origin_table)[self.origin_index])
 
+    def placed_lasers(self, pose: np.ndarray) -> np.ndarray | None:
+        """(N, 3) float64 in map: each ray's laser emitter at `pose`; None if not kept."""
+        if not len(self.laser_table):
+            return None
+        return transform_points(pose, self.laser_table)[self.origin_index]
+
 
 def scan_contribution(points: np.ndarray, origins: np.ndarray, pose: np.ndarray,
-                      stamp: float, resolution: float, unlit: np.ndarray | None = None
-                      ) -> Contribution:
+                      stamp: float, resolution: float, unlit: np.ndarray | None = None,
+                      lasers: np.ndarray | None = None) -> Contribution:
     """What a rebuild keeps of a fused scan: one ray per grid-sized voxel, and one unlit
-    floor point (`Contribution`). points, origins, unlit: the scan's in map at `pose`."""
+    floor point (`Contribution`). points, origins, unlit, lasers (the laser's emitters,
+    if the scan was fused with them): the scan's in map at `pose`."""
     cell = one_per_voxel(points, resolution)
     to_base = invert_pose(pose)
     unlit = np.zeros((0, 3)) if unlit is None else unlit
     dark = one_per_voxel(unlit, resolution)
     return Contribution.of_rays(transform_points(to_base, points[cell]),
                                 transform_points(to_base, origins[cell]), stamp,
-                                transform_points(to_base, unlit[dark]))
+                                transform_points(to_base, unlit[dark]),
+                                None if lasers is None
+                                else transform_points(to_base, lasers[cell]))
 
 
 def rebuild_grid(config: GridConfig, poses: np.ndarray,
@@ -322,7 +343,8 @@ def insert_kept(grid: HeightGrid, pose: np.ndarray,
     """Fuse one scan's kept rays at `pose`."""
     if kept is not None:
         grid.insert(*kept.placed(pose), kept.stamp,
-                    unlit=transform_points(pose, kept.unlit.astype(np.float64)))
+                    unlit=transform_points(pose, kept.unlit.astype(np.float64)),
+                    lasers=kept.placed_lasers(pose))
 
 
 def _reserve_kept(grid: HeightGrid, poses: np.ndarray,

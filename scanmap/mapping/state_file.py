@@ -23,7 +23,9 @@ reads it) plus the mapper's own arrays:
                          (kept_points, kept_origins in base_link, kept_sizes (N,) with -1
                          for a scan not fused, kept_stamps; kept_unlit in base_link and
                          kept_unlit_sizes per fused scan, the floor its laser lines
-                         crossed unlit, absent from older files); base_*: the grid's arrays
+                         crossed unlit, absent from older files; kept_lasers in
+                         base_link, each kept ray's laser emitter, where the scans were
+                         fused with the laser's rays); base_*: the grid's arrays
                          that rebuilds start from, when the graph began over a map
                          saved without one
 
@@ -148,6 +150,10 @@ def load_state(path: str | os.PathLike[str]) -> MapperState:
             if len(loops[name]) != n:
                 raise MapError(f"{path}: {_LOOPS}{name} must hold {n} entries, one per scan, "
                                f"got {len(loops[name])}")
+        if "kept_lasers" in loops and loops["kept_lasers"].shape != loops["kept_points"].shape:
+            raise MapError(f"{path}: {_LOOPS}kept_lasers must have the shape of "
+                           f"{_LOOPS}kept_points, {loops['kept_points'].shape}, got "
+                           f"{loops['kept_lasers'].shape}")
     return MapperState(grid=grid, config=config, model=model,
                        stamps=trajectory["stamps"].astype(np.float64),
                        poses=trajectory["poses"].astype(np.float64),

@@ -437,6 +437,72 @@ def test_a_see_through_distance_below_0_is_refused(distance):
         GridConfig(see_through=distance)
 
 
+def legs_grid(scans: int) -> HeightGrid:
+    """A person's legs, 0.1-0.3 m high, in the cell [2.0, 2.05] x [0, 0.05], hit in
+    `scans` scans at y = 0.01 (their mean hit 1.5 cm off the cell's centre)."""
+    grid = HeightGrid(CONFIG)
+    legs = np.array([[2.025, 0.01, z] for z in np.arange(0.1, 0.31, 0.02)])
+    for stamp in range(scans):
+        grid.insert(legs, legs + [0.0, 0.0, 0.01], float(stamp))  # vertical, no clearing
+    return grid
+
+
+def floor_scans(grid: HeightGrid, y: float, scans: int, lasers: bool) -> None:
+    """One floor hit a scan at (4, y), seen from a camera 1 m up at (0, y) (its ray
+    crosses the legs' cell at 0.5 m, above them) and lit by a laser 0.5 m up (its ray
+    crosses it at 0.25 m); `lasers`: the grid is told where the light came from."""
+    for k in range(scans):
+        grid.insert(np.array([[4.0, y, 0.0]]), np.array([0.0, y, 1.0]), 100.0 + k,
+                    lasers=np.array([0.0, y, 0.5]) if lasers else None)
+
+
+@pytest.mark.parametrize(("seen", "y", "lasers", "kept"), [
+    (3, 0.01, True, False),  # the laser's rays cross where the person stood: cleared
+    (3, 0.01, False, True),  # the camera's alone pass above
+    (3, 0.045, True, True),  # the laser's rays pass 3.5 cm from its hits
+    (CONFIG.static_scans, 0.01, True, True),  # furniture: the laser's rays leave it
+])
+def test_the_lasers_rays_clear_what_was_seen_briefly_near_its_hits(seen, y, lasers, kept):
+    """Issue 17: where a person stood about 1 m from the robot, no later camera ray
+    crossed the low heights of the cells it left, and they stayed obstacles; the laser's
+    light, from below the camera, crossed them on its way to the floor beyond."""
+    grid = legs_grid(seen)
+    floor_scans(grid, y, 12, lasers)
+    assert (len(level_at(grid, 2.025, 0.025)) == 1) == kept
+
+
+@pytest.mark.parametrize(("face", "kept"), [(True, True), (False, False)])
+def test_a_lasers_ray_along_a_face_seen_once_leaves_it(face, kept):
+    """Issue 17 (people room 22: a cabinet's side hit in one scan, then passed by the
+    laser's nearly level rays at 13 deg through the free part of the cells it cuts, 127
+    wall cell-scans lost): a laser's ray that runs along a face read from the
+    neighbouring cells' levels, however briefly seen, leaves it; one cell's level with
+    no face beside it (a person's) is cleared by the same ray."""
+    grid = HeightGrid(CONFIG)
+    rows = np.arange(-0.2, 0.2, 0.01) if face else np.array([0.02, 0.03])
+    hits = np.array([[2.04, y, z] for y in rows for z in np.arange(0.2, 0.3, 0.02)])
+    grid.insert(hits, hits + [0.0, 0.0, 0.01], 0.0)  # vertical, no clearing
+    along = np.array([np.sin(np.radians(13.0)), np.cos(np.radians(13.0))])
+    emitter = np.array([*(np.array([2.04, 0.025]) - 2.0 * along), 0.5])
+    end = np.array([*(np.array([2.04, 0.025]) + 2.0 * along), 0.0])
+    for k in range(6):
+        grid.insert(end[None], emitter + [0.0, 0.0, 0.5], 10.0 + k, lasers=emitter)
+    assert (len(level_at(grid, 2.025, 0.025)) == 1) == kept
+
+
+def test_a_lasers_ray_leaves_the_heights_it_crossed_unseen():
+    """The observed mask is what the camera's rays showed (the segmentation's rules read
+    it so): the laser's ray clears, the camera's ray alone marks heights seen."""
+    grid = HeightGrid(CONFIG)
+    floor_scans(grid, 0.025, 1, lasers=True)
+    layers = grid.layers()
+    iy, ix = (np.floor((np.array([0.025, 2.025]) - layers.origin[::-1]) / 0.05)).astype(int)
+    seen = int(layers.seen[iy, ix])
+    camera = int(gk.height_mask(0.49, 0.5, CONFIG.z_min, CONFIG.mask_dz))
+    laser = int(gk.height_mask(0.244, 0.25, CONFIG.z_min, CONFIG.mask_dz))
+    assert seen & camera == camera and seen & laser == 0
+
+
 def test_misses_per_scan_are_capped():
     grid, full = one_level_grid(0.72, 0.76)
     many = np.array([[4.0, 0.025 + dy, 0.74] for dy in np.linspace(-0.02, 0.02, 10)])

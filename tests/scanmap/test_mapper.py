@@ -269,3 +269,47 @@ def test_a_map_from_another_version_drops_unknown_tuning_but_not_grid_layout(map
     np.savez(layout, **(arrays | {"mapper_config": np.array(json.dumps(config))}))
     with pytest.raises(MapError, match="tile_shape"):
         Mapper.load(layout)
+
+
+def test_the_lasers_rays_are_a_setting_read_from_toml_and_checked(tmp_path):
+    """`laser_rays` (on by default): the Mapper clears along the laser's rays too; a TOML
+    file may turn it off, and anything but true or false is refused by name."""
+    assert MapperConfig().laser_rays is True
+    path = tmp_path / "mapper.toml"
+    path.write_text("laser_rays = false\n")
+    config = MapperConfig.load(path)
+    assert config.laser_rays is False
+    path.write_text(config.to_toml())
+    assert MapperConfig.load(path) == config
+    with pytest.raises(MapError, match="laser_rays"):
+        MapperConfig(laser_rays=1)
+
+
+def test_the_mapper_fuses_with_the_lasers_rays_as_configured():
+    """The people corridor's first scans fused by the Mapper at the true poses, with and
+    without the laser's rays: each grid is the one `HeightGrid.insert` builds given the
+    laser's emitters or not, and the two differ (the laser's rays clear more)."""
+    from scanmap.grid.height_grid import HeightGrid
+    from scanmap.grid.rays import laser_origins
+    from scanmap.grid.unlit import unlit_floor
+
+    model = reference_scanner()
+    ideal = list(ideal_scans(builtin_scene("people"), model, scans=6))
+    grids = {}
+    for laser_rays in (True, False):
+        config = MapperConfig(laser_rays=laser_rays, update_obstacles=False)
+        mapper = Mapper(model, config, offline=True, initial_pose=ideal[0].pose_start)
+        reference = HeightGrid(config.grid)
+        for step in ideal:
+            poses = frame_poses(step.scan, step.pose_start)
+            mapper._fuse(step.scan, step.pose_start)
+            points, origins = scan_rays(step.scan, model, poses)
+            lasers = laser_origins(step.scan, model, poses) if laser_rays else None
+            reference.insert(points, origins, float(step.scan.time.max()),
+                             stood=poses[..., :2, 3].reshape(-1, 2),
+                             unlit=unlit_floor(step.scan, model, poses), lasers=lasers)
+        ours, theirs = mapper.grid.layers(), reference.layers()
+        for name in ("levels", "counts", "nlev", "seen"):
+            np.testing.assert_array_equal(getattr(ours, name), getattr(theirs, name))
+        grids[laser_rays] = ours
+    assert grids[True].counts[..., 1].sum() > grids[False].counts[..., 1].sum()  # passes

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanmap.grid.rays import camera_centres, scan_rays
+from scanmap.grid.rays import camera_centres, laser_origins, scan_rays
 from scanmap_driver.errors import ScanError
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import HeadMount, reference_scanner
@@ -65,6 +65,25 @@ def test_each_points_heading_turns_its_camera_centre():
         np.testing.assert_allclose(
             origins[i], transform_points(per_frame[scan.frame_index[i]], centre)[0],
             atol=1e-12)
+
+
+def test_the_laser_origins_are_the_emitter_turned_with_the_head():
+    """Each point's laser origin: the emitter (`model.laser.origin`, in the head mount)
+    turned by its heading, then by the head's mount and its frame's pose; the emitter
+    lies on the laser plane, 0.5 m below the reference camera."""
+    model, scan = tilted_model(), random_scan()
+    per_frame = np.stack([se2_to_pose(0.1 * f, 0.2, -0.3 * f) for f in range(5)])
+    emitters = laser_origins(scan, model, per_frame)
+    emitter = np.array([model.laser.origin])
+    for i in range(len(scan)):
+        in_base = transform_points(model.head_pose(scan.heading[i]), emitter)
+        np.testing.assert_allclose(
+            emitters[i], transform_points(per_frame[scan.frame_index[i]], in_base)[0],
+            atol=1e-12)
+    level = reference_scanner()
+    centre = camera_centres(level, np.zeros(1))[0]
+    np.testing.assert_allclose(laser_origins(random_scan(1, 1), level)[0],
+                               centre - [0.0, 0.0, 0.5], atol=1e-12)
 
 
 @pytest.mark.parametrize("pose", [np.eye(3), np.full((4, 4), np.nan), np.stack([np.eye(4)] * 2)])

@@ -50,7 +50,8 @@ def test_a_map_without_a_graph_is_extended_by_a_new_one(ring_ideal, tmp_path, su
     for pose, kept in zip(poses[first:], day_two._contributions[first:], strict=True):
         if kept is not None:
             reference.insert(transform_points(pose, kept.points),
-                             transform_points(pose, kept.origins), kept.stamp)
+                             transform_points(pose, kept.origins), kept.stamp,
+                             lasers=kept.placed_lasers(pose))
     if submap_scans is None:
         assert_same_grid(day_two.grid, reference)
     else:  # against the scene's truth, as good as the reference; nearly the same cells

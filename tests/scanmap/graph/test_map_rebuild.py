@@ -60,6 +60,27 @@ def test_kept_rays_keep_each_run_of_one_origin_once(distinct):
     np.testing.assert_array_equal(starts, transform_points(pose, origins.astype(np.float32)))
 
 
+def test_kept_rays_keep_each_runs_laser_emitter_and_place_it():
+    """Where a scan was fused with the laser's rays, each run of rays with one camera
+    position and one emitter is one row of both tables (an emitter that moves while the
+    camera does not starts a row too); the emitters come back exactly (as float32) and
+    are placed with the rays."""
+    rng = np.random.default_rng(4)
+    origins = np.repeat(rng.normal(0.0, 1.0, (4, 3)), 3, axis=0)
+    lasers = origins - [0.0, 0.0, 0.5]
+    lasers[7:] += [0.01, 0.0, 0.0]  # the emitter moved in the third run
+    points = rng.normal(0.0, 3.0, (len(origins), 3))
+    kept = Contribution.of_rays(points, origins, 1.0, lasers=lasers)
+    assert len(kept.origin_table) == len(kept.laser_table) == 5
+    np.testing.assert_array_equal(kept.lasers, lasers.astype(np.float32))
+    np.testing.assert_array_equal(kept.origins, origins.astype(np.float32))
+    pose = se2_to_pose(-1.0, 0.5, 2.0)
+    np.testing.assert_array_equal(kept.placed_lasers(pose),
+                                  transform_points(pose, lasers.astype(np.float32)))
+    without = Contribution.of_rays(points, origins, 1.0)
+    assert without.lasers is None and without.placed_lasers(pose) is None
+
+
 @pytest.mark.parametrize("window", [None, 12.0])
 def test_rebuild_equals_plain_insertion(ring_ideal, window):
     config = GridConfig(window=window)

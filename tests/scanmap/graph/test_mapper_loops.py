@@ -55,8 +55,9 @@ def test_a_map_saved_mid_run_keeps_its_graph_and_closes_the_loop_later(ring_idea
 
 
 def test_a_saved_map_keeps_each_scans_unlit_floor_for_later_rebuilds(tmp_path):
-    """Saved and resumed, the kept floor a scan's laser lines crossed unlit is the same,
-    so a rebuild after the restart still keeps a dark patch out of the free space."""
+    """Saved and resumed, the kept floor a scan's laser lines crossed unlit and each kept
+    ray's laser emitter are the same, so a rebuild after the restart still keeps a dark
+    patch out of the free space and clears along the laser's rays."""
     config = MapperConfig(loop_closure=LoopClosureConfig(enabled=True), update_obstacles=False)
     scene = small_patch_scene(0.0, 0.0, 0.5, x=2.0)
     ideal = list(ideal_scans(scene, scans=2))
@@ -65,9 +66,11 @@ def test_a_saved_map_keeps_each_scans_unlit_floor_for_later_rebuilds(tmp_path):
     first.save(tmp_path / "map.npz")
     first.loop_closer.close()
     resumed = Mapper.load(tmp_path / "map.npz", offline=True)
-    before = [k.unlit for k in first._contributions]
-    after = [k.unlit for k in resumed._contributions]
+    before = [(k.unlit, k.lasers) for k in first._contributions]
+    after = [(k.unlit, k.lasers) for k in resumed._contributions]
     resumed.loop_closer.close()
-    assert sum(map(len, before)) > 10
-    for saved, loaded in zip(before, after, strict=True):
-        np.testing.assert_array_equal(saved, loaded)
+    assert sum(len(unlit) for unlit, _ in before) > 10
+    for (unlit, lasers), (unlit_loaded, lasers_loaded) in zip(before, after, strict=True):
+        np.testing.assert_array_equal(unlit, unlit_loaded)
+        assert lasers is not None and len(lasers) > 100
+        np.testing.assert_array_equal(lasers, lasers_loaded)
