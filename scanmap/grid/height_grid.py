@@ -284,8 +284,10 @@ class HeightGrid:
         laser's emitter, `scanmap.grid.rays.laser_origins`): the light's path to a point
         was free too, and clears levels seen briefly that lay on it (see
         `scanmap.grid._kernels`; below the camera, the emitter's rays cross the low heights
-        near the robot that the camera's rays pass above). Rays from an emitter beyond
-        the extent or window are left out.
+        near the robot that the camera's rays pass above), in the tiles the camera's rays
+        reached (the emitter sits by the camera: on the reference scanner both rays to a
+        point cross the same cells). Rays from an emitter beyond the extent or window are
+        left out.
 
         stood: (M, 2+) x, y where the robot stood during the scan (its path; default the
         middle of the ray origins). unlit: (K, 2+) x, y of floor the scan's laser lines
@@ -319,16 +321,15 @@ class HeightGrid:
                     f"{origins[i].tolist()}); nothing was inserted")
             new_tiles = 0
             buffer = np.empty((256, 2), np.int64)
-            for sources, valid in ((origins, cls), (lasers, laser_cls))[:1 + bool(len(lasers))]:
-                while True:
-                    count = gk.collect_missing_tiles(points, sources, valid,
-                                                     self._tile_index, c.resolution,
-                                                     c.tile_cells, c.corner, c.corner, buffer)
-                    found = buffer if count < 0 else buffer[:count]
-                    self._allocate(found)
-                    new_tiles += len(found)
-                    if count >= 0:
-                        break
+            while True:  # the camera's rays' tiles: the laser's clear only in those
+                count = gk.collect_missing_tiles(points, origins, cls, self._tile_index,
+                                                 c.resolution, c.tile_cells, c.corner,
+                                                 c.corner, buffer)
+                found = buffer if count < 0 else buffer[:count]
+                self._allocate(found)
+                new_tiles += len(found)
+                if count >= 0:
+                    break
             self._scan_times.append(float(stamp))
             ip = np.array([self._shift, c.levels, c.max_misses, len(self._scan_times) - 1,
                            self._ray_key, c.bundle_run, c.static_scans,
