@@ -411,9 +411,9 @@ class Mapper:
         kept = [k for k in self._contributions if k is not None]
         empty = np.zeros((0, 3), np.float32)
         base = {} if self._base is None else {f"base_{k}": v for k, v in self._base.items()}
-        lasers = [k.lasers for k in kept]
-        emitters = {"kept_lasers": np.concatenate(lasers)} \
-            if kept and all(e is not None for e in lasers) else {}
+        lasers = [empty if not len(k.points) else k.lasers for k in kept]  # none: no rays
+        emitters = {"kept_lasers": np.concatenate([empty, *lasers])} \
+            if self.config.laser_rays and all(e is not None for e in lasers) else {}
         return {**self.loop_closer.state(), **base, **emitters,
                 "kept_points": np.concatenate([empty, *(k.points for k in kept)]),
                 "kept_origins": np.concatenate([empty, *(k.origins for k in kept)]),

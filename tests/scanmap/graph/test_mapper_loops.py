@@ -74,3 +74,24 @@ def test_a_saved_map_keeps_each_scans_unlit_floor_for_later_rebuilds(tmp_path):
         np.testing.assert_array_equal(unlit, unlit_loaded)
         assert lasers is not None and len(lasers) > 100
         np.testing.assert_array_equal(lasers, lasers_loaded)
+
+
+def test_a_scan_fused_without_points_keeps_the_others_laser_emitters(tmp_path):
+    """A scan whose every point was left out before fusion (`stray_points`) keeps no
+    rays, so no emitters either: the map still saves the other scans' emitters, and
+    they load back in place."""
+    from scanmap.mapping.rebuild import Contribution
+
+    config = MapperConfig(loop_closure=LoopClosureConfig(enabled=True), update_obstacles=False)
+    ideal = list(ideal_scans(small_patch_scene(0.0, 0.0, 0.5, x=2.0), scans=2))
+    first = Mapper(config=config, offline=True, initial_pose=ideal[0].pose_start)
+    first.map_scans(s.scan for s in ideal)
+    empty = np.zeros((0, 3))
+    first._contributions[0] = Contribution.of_rays(empty, empty, 0.0, lasers=empty)
+    first.save(tmp_path / "map.npz")
+    first.loop_closer.close()
+    resumed = Mapper.load(tmp_path / "map.npz", offline=True)
+    resumed.loop_closer.close()
+    assert resumed._contributions[0].lasers is None
+    np.testing.assert_array_equal(resumed._contributions[1].lasers,
+                                  first._contributions[1].lasers)
