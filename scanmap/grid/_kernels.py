@@ -39,8 +39,9 @@ Insertion is one scan at a time, in three passes:
    The laser's rays, from its emitter to the points it lit, are traced too when given:
    the light's path was free as well, and from the emitter (0.5 m below the camera on
    the reference scanner) they cross the low heights near the robot that the camera's
-   rays pass above (on `people`, 962 of 1445 cells still an obstacle three scans after
-   a person left held a thin level no later camera ray had crossed). Nearly level, they
+   rays pass above (on `people`, 962 of 1445 cell-scans still an obstacle three scans
+   after a person left lay in cells whose band later camera rays had crossed only in
+   part, 50-95 % of its bins, most holding a thin level hit once). Nearly level, they
    run along faces at their heights for metres, so they pass only a level seen in
    fewer than `static_scans` scans, only within `pass_radius` of its mean hit, and not
    along a face (`_grazes_static` within LASER_GRAZE_SIN of the ray's direction, read
