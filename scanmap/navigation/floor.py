@@ -702,12 +702,16 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
           & ((unseen_around >= 7) | scant & (unseen_around >= 5))] = UNKNOWN
     # Floor next to a DROP_OFF cell more than plane_tolerance below the largest floor
     # plane: a hole's far wall's top, a few cm down, grown into the floor (rendered
-    # rooms: FREE a cell inside the hole), or a rim the edge crosses
+    # rooms: FREE a cell inside the hole), or a rim the edge crosses; or a rim cell
+    # mostly over the hole (`_over_the_rim`)
     beside = (state == FREE) & (layers.nlev > 0) & ~stood & morphology.dilate(dropped)
-    if planes and beside.any():
+    if beside.any():
         by, bx = _cells(beside)
-        low = bottom[by, bx] < planes[0].height_at(xs[bx], ys[by]) - params.plane_tolerance
-        state[by[low], bx[low]] = UNKNOWN
+        off = _over_the_rim(hits_at[by, bx], dropped, by, bx, res)
+        if planes:
+            off |= bottom[by, bx] < planes[0].height_at(xs[bx], ys[by]) \
+                - params.plane_tolerance
+        state[by[off], bx[off]] = UNKNOWN
     # Floor between two DROP_OFF cells across it (a row or a column): a rim's or far
     # wall's hits landed inside the hole (rendered mixed room 3), or a strip a cell wide
     # between two holes that no robot drives
@@ -727,6 +731,26 @@ def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> 
     (0.17 m, 3.4 cells at the defaults), at least two cells."""
     run = 0.9 * robot.step_height / max(math.tan(params.max_slope), 1e-9)
     return max(run / resolution, 2.0)
+
+
+def _over_the_rim(mean_hits: np.ndarray, dropped: np.ndarray, rows: np.ndarray,
+                  cols: np.ndarray, resolution: float) -> np.ndarray:
+    """Of the cells (rows, cols) beside `dropped` ones, those whose floor covers less than
+    half of them: its hits' mean (`mean_hits`, (n, 2) x, y from the cell's centre) lies
+    more than a quarter cell from the centre away from the dropped cells around. Hits
+    spread over the part of a cell an edge leaves put their mean (1 - f) / 2 of a cell
+    from its centre where the floor covers f of it; the cell's centre is then over the
+    hole (ideal random rooms 1-3: 25 of the 39 FREE cells centred over a drop-off, and
+    20 of the 351 beside one that are not)."""
+    padded = np.pad(dropped, 1)
+    toward = np.zeros((len(rows), 2))
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            there = padded[rows + 1 + dy, cols + 1 + dx]
+            toward[:, 0] += dx * there
+            toward[:, 1] += dy * there
+    away = -(mean_hits[:, 0] * toward[:, 0] + mean_hits[:, 1] * toward[:, 1])
+    return away > 0.25 * resolution * np.hypot(toward[:, 0], toward[:, 1])
 
 
 def _cells(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

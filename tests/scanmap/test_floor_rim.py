@@ -39,6 +39,21 @@ def test_floor_beside_a_drop_off_reaching_down_its_far_wall_is_not_free(rim_bott
     assert (seg.state[ROWS.stop, 14:20] == FREE).all()  # the floor beside, at its height
 
 
+@pytest.mark.parametrize("mean_x, free", [(-0.35, False), (-0.2, True), (0.35, True)])
+def test_a_rim_cell_whose_hits_lie_on_its_far_side_from_the_hole_is_not_free(mean_x, free):
+    # Ideal random rooms 1-3: 39 FREE cells had their centres over a hole, their floor's
+    # hits on a rim part less than half of the cell. Hits spread over the part an edge
+    # leaves put their mean (1 - f) / 2 of a cell from the centre where the floor covers
+    # f of it: a mean more than a quarter cell from the centre away from the drop-off
+    # leaves the cell UNKNOWN; nearer the centre, or towards the hole, it stays FREE
+    layers = rim_cells(-0.02)
+    layers.levels[ROWS, 13, 0, gk.MX] = mean_x * layers.resolution
+    seg = segment(layers, ROBOT)
+    assert (seg.state[ROWS, 14:20] == DROP_OFF).all()
+    assert (seg.state[ROWS, 13] == (FREE if free else UNKNOWN)).all()
+    assert (seg.state[ROWS, 12] == FREE).all()
+
+
 def test_floor_between_two_drop_off_cells_is_not_free():
     # Rendered mixed room 3: a cell of floor-height hits (a rim's, landed a cell inside
     # the hole) with the hole's cells on either side of it was FREE more than a cell
