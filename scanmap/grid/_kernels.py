@@ -908,7 +908,9 @@ def frame_rays(points: np.ndarray, headings: np.ndarray, frames: np.ndarray,
     """Points (N, 3) in base_link and their camera centres (the camera at `camera` in the
     head mount, turned by each heading about z, then by the 4x4 `head` pose) carried to
     map by the pose of each point's frame (poses (F, 4, 4)). A frame's points share its
-    heading: the camera centre is turned again only when the heading changes."""
+    heading: the camera centre is turned again only when the heading changes. An empty
+    `out_points` ((0, 3)) leaves the points out: only their origins are wanted."""
+    with_points = out_points.shape[0] == points.shape[0]
     last_heading = np.nan
     bx = by = bz = 0.0
     for i in range(points.shape[0]):
@@ -924,7 +926,8 @@ def frame_rays(points: np.ndarray, headings: np.ndarray, frames: np.ndarray,
         f = frames[i]
         px, py, pz = np.float64(points[i, 0]), np.float64(points[i, 1]), np.float64(points[i, 2])
         for r in range(3):
-            out_points[i, r] = poses[f, r, 0] * px + poses[f, r, 1] * py \
-                + poses[f, r, 2] * pz + poses[f, r, 3]
+            if with_points:
+                out_points[i, r] = poses[f, r, 0] * px + poses[f, r, 1] * py \
+                    + poses[f, r, 2] * pz + poses[f, r, 3]
             out_origins[i, r] = poses[f, r, 0] * bx + poses[f, r, 1] * by \
                 + poses[f, r, 2] * bz + poses[f, r, 3]

@@ -47,27 +47,32 @@ def laser_origins(scan: Scan, model: ScannerModel,
                   pose: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) in map: where the laser's light that lit each point of `scan` came from (the
     emitter, `model.laser.origin` in the head mount), as `scan_rays` takes `pose`."""
-    return _rays_from(scan, model, np.array(model.laser.origin, np.float64), pose)[1]
+    return _rays_from(scan, model, np.array(model.laser.origin, np.float64), pose,
+                      with_points=False)[1]
 
 
 def _rays_from(scan: Scan, model: ScannerModel, mounted: np.ndarray,
-               pose: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """`scan_rays` from a point fixed in the head mount."""
+               pose: np.ndarray | None, with_points: bool = True
+               ) -> tuple[np.ndarray | None, np.ndarray]:
+    """`scan_rays` from a point fixed in the head mount (the points None, and not carried
+    to map, without `with_points`)."""
     pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
     if pose.shape[-2:] != (4, 4) or pose.ndim not in (2, 3) or not np.isfinite(pose).all():
         raise ScanError(f"scan_rays: pose must be a finite 4x4 or (F, 4, 4) array, got shape "
                         f"{pose.shape}")
     if pose.ndim == 2:
         centres = _turned(model, mounted, scan.heading)
-        return transform_points(pose, scan.points), transform_points(pose, centres)
+        points = transform_points(pose, scan.points) if with_points else None
+        return points, transform_points(pose, centres)
     frames = scan.frame_index
     if len(frames) and not (0 <= frames.min() and frames.max() < len(pose)):
         raise ScanError(f"scan_rays: frame_index spans {frames.min()}..{frames.max()} but "
                         f"{len(pose)} frame poses were given")
-    points, origins = np.empty((len(frames), 3)), np.empty((len(frames), 3))
+    points = np.empty((len(frames) if with_points else 0, 3))
+    origins = np.empty((len(frames), 3))
     gk.frame_rays(np.ascontiguousarray(scan.points), np.ascontiguousarray(scan.heading,
                                                                           np.float64),
                   np.ascontiguousarray(frames), np.ascontiguousarray(pose),
                   np.ascontiguousarray(model.head_mount.pose, np.float64), mounted, points,
                   origins)
-    return points, origins
+    return (points if with_points else None), origins
