@@ -50,14 +50,15 @@ class InsertStats:
 class CellLayers:
     """Dense copy of a rectangular window of the grid, row = y, column = x.
 
-    origin: (x, y) of the lower-left corner of cell [0, 0]. levels: (ny, nx, K, 5)
-    float32 records (lo, hi, log-odds, mean hit x and y offset from the cell centre);
-    counts: (ny, nx, K, 2) uint32 (hits, passes); nlev: levels in use; seen: observed
-    height mask; updated: last update time (NaN where never updated). stood: (M, 2) x, y
-    where the robot stood (each scan's path as `insert` was given it, else the middle of
-    its ray origins) during the scans inserted since the grid was made, inside the window:
-    floor the robot stood on. unlit: (ny, nx) bool, cells whose
-    floor a laser line crossed without a return (`scanmap.grid.unlit`); none if not given.
+    origin: (x, y) of the lower-left corner of cell [0, 0]. levels: (ny, nx, K, 8)
+    float32 records (`_kernels.LO` to `MZ`: lo, hi, log-odds, mean hit x and y offset
+    from the cell centre, this scan's hit range, mean hit height); counts: (ny, nx, K, 2)
+    uint32 (hits, passes); nlev: levels in use; seen: observed height mask; updated: last
+    update time (NaN where never updated). stood: (M, 2) x, y where the robot stood (each
+    scan's path as `insert` was given it, else the middle of its ray origins) during the
+    scans inserted since the grid was made, inside the window: floor the robot stood on.
+    unlit: (ny, nx) bool, cells whose floor a laser line crossed without a return
+    (`scanmap.grid.unlit`); none if not given.
     """
 
     origin: tuple[float, float]
