@@ -100,7 +100,8 @@ from scanmap.evaluation.ground_truth import (
 )
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.grid.rays import laser_origins, scan_rays
-from scanmap.grid.unlit import unlit_floor
+from scanmap.grid.swept import swept_frames
+from scanmap.grid.unlit import line_returns, unlit_floor
 from scanmap.navigation.floor import (
     DROP_OFF,
     FREE,
@@ -160,11 +161,14 @@ def scene_window(scene: Scene) -> tuple[float, float, float, float]:
 
 
 def fuse(grid: HeightGrid, ideal: IdealScan) -> None:
-    """Insert one ideal scan at its true frame poses, with the floor it saw unlit."""
+    """Insert one ideal scan at its true frame poses, with the floor it saw unlit and the
+    levels its laser swept unlit, as `Mapper` does."""
     points, origins = scan_rays(ideal.scan, MODEL, ideal.frame_poses)
+    returns = line_returns(ideal.scan, MODEL)
     grid.insert(points, origins, float(ideal.scan.time.max()),
-                unlit=unlit_floor(ideal.scan, MODEL, ideal.frame_poses),
-                lasers=laser_origins(ideal.scan, MODEL, ideal.frame_poses))
+                unlit=unlit_floor(ideal.scan, MODEL, ideal.frame_poses, returns),
+                lasers=laser_origins(ideal.scan, MODEL, ideal.frame_poses),
+                swept=swept_frames(ideal.scan, MODEL, ideal.frame_poses, returns))
 
 
 def mapped(scene: Scene, scans: int | None = None, seed: int = 0,

@@ -20,15 +20,20 @@ import math
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid import _merge_kernels as mk
+from scanmap.grid import _swept_kernels as sk
 from scanmap.grid.config import GridConfig
 from scanmap.grid.packed import PackedGrid, pack_pools
 from scanmap_driver.errors import MapError
 from scanmap_driver.files import exact_array
+
+if TYPE_CHECKING:
+    from scanmap.grid.swept import SweptFrames
 
 POOL_NAMES = ("lev_f", "lev_n", "lev_flag", "nlev", "cells")
 SAVED_CELL_FIELDS = 3  # observed mask, scan id, unlit scan id; not the ray-bundle scratch
@@ -278,7 +283,8 @@ class HeightGrid:
 
     def insert(self, points: np.ndarray, origins: np.ndarray, stamp: float,
                stood: np.ndarray | None = None, unlit: np.ndarray | None = None,
-               lasers: np.ndarray | None = None) -> InsertStats:
+               lasers: np.ndarray | None = None, swept: SweptFrames | None = None
+               ) -> InsertStats:
         """Fuse one scan: points (N, 3) in map, ray origins (N, 3) or one (3,), time (s).
 
         lasers: where the light of each point came from, (N, 3) or one (3,) in map (the
@@ -293,7 +299,10 @@ class HeightGrid:
         stood: (M, 2+) x, y where the robot stood during the scan (its path; default the
         middle of the ray origins). unlit: (K, 2+) x, y of floor the scan's laser lines
         crossed without a return (`scanmap.grid.unlit.unlit_floor`), marked in the tiles
-        its rays reached (none are allocated for them). Non-finite rays are skipped; a
+        its rays reached (none are allocated for them). swept: the scan's frames
+        (`scanmap.grid.swept.swept_frames`): the levels their laser plane swept in view
+        without lighting them, seen in fewer than `static_scans` scans, are missed (a
+        person who left; counted in `cleared`). Non-finite rays are skipped; a
         point or origin beyond the configured extent raises MapError before anything
         changes.
         """
@@ -343,6 +352,11 @@ class HeightGrid:
                 gk.mark_unlit(np.ascontiguousarray(unlit, np.float64), self._tile_index,
                               cells, c.corner, c.corner, c.resolution, self._shift,
                               len(self._scan_times) - 1)
+            if swept is not None:  # also without frames: compiled by the warm-up
+                cleared += sk.miss_swept_levels(swept.to_head, swept.cameras, swept.emitters,
+                                                swept.nearest, swept.optics, swept.box,
+                                                self._tile_index, *self._flat_pools()[:4],
+                                                self._fp, ip)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
             if stood is not None:
                 self._stood.extend(map(tuple, _path(stood, 0.5 * c.resolution)))

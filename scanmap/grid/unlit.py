@@ -44,6 +44,7 @@ segmentation never fills a patch without hits near them as floor between samples
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -133,18 +134,37 @@ def _floor_crossings(headings: np.ndarray, mount: np.ndarray, end_a: np.ndarray,
                 and not hidden
 
 
+@njit(cache=True, nogil=True, inline="always")
+def project_to_image(x: float, y: float, z: float, to_camera: np.ndarray,
+                     intrinsics: np.ndarray, dist: np.ndarray) -> tuple[float, float, bool]:
+    """Pixel (u, v) of a point (x, y, z) from the camera centre in `head`, with OpenCV's
+    distortion model (`project_head_points` without its arrays); False behind the camera.
+    to_camera: the head-to-camera rotation, row-major (9,) or (3, 3) flattened."""
+    depth = to_camera[6] * x + to_camera[7] * y + to_camera[8] * z
+    if not depth > 0.0:
+        return np.nan, np.nan, False
+    xn = (to_camera[0] * x + to_camera[1] * y + to_camera[2] * z) / depth
+    yn = (to_camera[3] * x + to_camera[4] * y + to_camera[5] * z) / depth
+    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    r2 = xn * xn + yn * yn
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
+    yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
+    return intrinsics[0] * xd + intrinsics[2], intrinsics[1] * yd + intrinsics[3], True
+
+
 @njit(cache=True, nogil=True)
 def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
                   mount_inverse: np.ndarray, to_camera: np.ndarray, camera: np.ndarray,
                   intrinsics: np.ndarray, dist: np.ndarray, laser: np.ndarray,
-                  returned: np.ndarray, floor: np.ndarray, off_plane: np.ndarray) -> None:
+                  returned: np.ndarray, floor: np.ndarray, off_plane: np.ndarray,
+                  nearest: np.ndarray) -> None:
     """Mark returned[slot, u] for the image line u of each point (base_link, seen at its
-    heading; the line `project_head_points` gives, without its arrays), floor[slot, u]
-    where the point lies within FLOOR_TOLERANCE of z = 0, and count in off_plane[slot]
-    the points farther than PLANE_TOLERANCE from the laser plane (origin, normal: laser)."""
-    fx, cx = intrinsics[0], intrinsics[2]
-    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
-    distorted = k1 != 0.0 or k2 != 0.0 or p1 != 0.0 or p2 != 0.0 or k3 != 0.0
+    heading; `project_to_image`), floor[slot, u] where the point lies within
+    FLOOR_TOLERANCE of z = 0, keep in nearest[slot, u] the least distance from the camera
+    of the line's points, and count in off_plane[slot] the points farther than
+    PLANE_TOLERANCE from the laser plane (origin, normal: laser)."""
+    rotation = to_camera.ravel()
     width = returned.shape[1]
     last, c, s = np.nan, 1.0, 0.0
     for i in range(points.shape[0]):
@@ -163,22 +183,17 @@ def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
                + (hz - laser[2]) * laser[5]) > PLANE_TOLERANCE:
             off_plane[slot[i]] += 1
         hx, hy, hz = hx - camera[0], hy - camera[1], hz - camera[2]
-        z = to_camera[2, 0] * hx + to_camera[2, 1] * hy + to_camera[2, 2] * hz
-        if not z > 0.0:
+        u, _, ahead = project_to_image(hx, hy, hz, rotation, intrinsics, dist)
+        if not ahead:
             continue
-        inverse = 1.0 / z
-        xd = (to_camera[0, 0] * hx + to_camera[0, 1] * hy + to_camera[0, 2] * hz) * inverse
-        if distorted:
-            x = xd
-            y = (to_camera[1, 0] * hx + to_camera[1, 1] * hy + to_camera[1, 2] * hz) * inverse
-            r2 = x * x + y * y
-            xd = x * (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))) + 2.0 * p1 * x * y \
-                + p2 * (r2 + 2.0 * x * x)
-        u = np.rint(fx * xd + cx)
+        u = np.rint(u)
         if 0.0 <= u < width:
-            returned[slot[i], int(u)] = True
+            line = int(u)
+            returned[slot[i], line] = True
+            nearest[slot[i], line] = min(nearest[slot[i], line],
+                                         np.sqrt(hx * hx + hy * hy + hz * hz))
             if abs(points[i, 2]) <= FLOOR_TOLERANCE:
-                floor[slot[i], int(u)] = True
+                floor[slot[i], line] = True
 
 
 @njit(cache=True, nogil=True)
@@ -333,25 +348,57 @@ def frame_slots(frame_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     return frame_index[first], first, np.cumsum(starts) - 1
 
 
-def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
-                ) -> np.ndarray:
-    """(M, 3) points in map (by `pose`, as `scan_rays` takes it) of the floor each frame of
-    `scan` should have lit on an image line that returned nothing (see the module)."""
-    pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
-    if not len(scan):
-        return np.zeros((0, 3))
+@dataclass(frozen=True)
+class LineReturns:
+    """What each image line of a scan's frames returned, as `unlit_floor` and
+    `scanmap.grid.swept` read it.
+
+    frames: (F,) the frame indices with points, first: (F,) each one's first point,
+    slot: (N,) each point's frame slot; returned, floor: (F, W) whether the line returned a
+    point, and one on the floor; nearest: (F, W) the least distance (m) from the camera of
+    the line's points (inf: none); foreign: (F,) frames whose points do not lie on the
+    laser plane (another sensor's).
+    """
+
+    frames: np.ndarray
+    first: np.ndarray
+    slot: np.ndarray
+    returned: np.ndarray
+    floor: np.ndarray
+    nearest: np.ndarray
+    foreign: np.ndarray
+
+
+def line_returns(scan: Scan, model: ScannerModel) -> LineReturns:
+    """The image lines each frame of `scan` returned a point on (see `LineReturns`)."""
     frames, first, slot = frame_slots(scan.frame_index)
     cam = model.camera
     returned = np.zeros((len(frames), cam.width), bool)
     floor = np.zeros_like(returned)
+    nearest = np.full(returned.shape, np.inf)
     off_plane = np.zeros(len(frames), np.int64)
     _line_returns(scan.points, scan.heading, slot.astype(np.int64),
                   np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),
                   cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
-                  returned, floor, off_plane)
+                  returned, floor, off_plane, nearest)
     foreign = off_plane > OFF_PLANE_SHARE * np.bincount(slot, minlength=len(frames))
+    return LineReturns(frames, first, slot, returned, floor, nearest, foreign)
+
+
+def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None,
+                returns: LineReturns | None = None) -> np.ndarray:
+    """(M, 3) points in map (by `pose`, as `scan_rays` takes it) of the floor each frame of
+    `scan` should have lit on an image line that returned nothing (see the module);
+    `returns`: `line_returns(scan, model)` when already at hand."""
+    pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
+    if not len(scan):
+        return np.zeros((0, 3))
+    returns = returns or line_returns(scan, model)
+    frames, first = returns.frames, returns.first
+    returned, floor, foreign = returns.returned, returns.floor, returns.foreign
+    cam = model.camera
     lit = _lit_lines(returned, floor, foreign)
     if not _floor_runs(returned, floor, foreign, lit):  # most scans: skip the floor's geometry
         return np.zeros((0, 3))

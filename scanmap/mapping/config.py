@@ -54,6 +54,9 @@ class MapperConfig:
     laser_rays: clear space along the laser's rays (emitter to point) as well as the
       camera's (`HeightGrid.insert`'s `lasers`): a person who walked on clears where only
       the emitter's lower rays cross the heights it stood in.
+    swept: miss the levels the laser's plane swept in the camera's view without lighting
+      them (`HeightGrid.insert`'s `swept`, `scanmap.grid.swept`): a person who left clears
+      where no ray crosses the space they stood in. Not kept for loop-closure rebuilds.
     """
 
     grid: GridConfig = field(default_factory=GridConfig)
@@ -69,6 +72,7 @@ class MapperConfig:
     resume_scans: int = 3
     rebuild_submap_scans: int | None = 25
     laser_rays: bool = True
+    swept: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.max_age) and self.max_age > 0):
@@ -86,9 +90,10 @@ class MapperConfig:
         if submap is not None and not (isinstance(submap, int) and submap >= 1):
             raise MapError(f"MapperConfig.rebuild_submap_scans: expected None or an "
                            f"integer >= 1, got {submap!r}")
-        if not isinstance(self.laser_rays, bool):
-            raise MapError(f"MapperConfig.laser_rays: expected true or false, "
-                           f"got {self.laser_rays!r}")
+        for name in ("laser_rays", "swept"):
+            if not isinstance(getattr(self, name), bool):
+                raise MapError(f"MapperConfig.{name}: expected true or false, "
+                               f"got {getattr(self, name)!r}")
 
     def to_dict(self) -> dict:
         """Plain JSON-able values."""

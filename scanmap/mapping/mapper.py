@@ -54,7 +54,8 @@ from scanmap.graph import LoopCloser
 from scanmap.graph.localise import Localisation, NotLocalised, Session
 from scanmap.grid.height_grid import HeightGrid, InsertStats
 from scanmap.grid.rays import laser_origins, scan_rays
-from scanmap.grid.unlit import unlit_floor
+from scanmap.grid.swept import swept_frames
+from scanmap.grid.unlit import line_returns, unlit_floor
 from scanmap.io.trajectory import Trajectory
 from scanmap.mapping.config import MapperConfig
 from scanmap.mapping.rebuild import (
@@ -282,13 +283,16 @@ class Mapper:
         poses = frame_poses(scan, pose)
         points, origins = scan_rays(scan, self.model, poses)
         lasers = laser_origins(scan, self.model, poses) if c.laser_rays else None
-        unlit = unlit_floor(scan, self.model, poses)
+        returns = line_returns(scan, self.model)
+        unlit = unlit_floor(scan, self.model, poses, returns)
         last = poses if poses.ndim == 2 else poses[scan.frame_index.max()]
         if c.grid.window is not None:
             self.grid.recenter(float(last[0, 3]), float(last[1, 3]))
         stats = self.grid.insert(points, origins, float(scan.time.max()),
                                  stood=poses[..., :2, 3].reshape(-1, 2),  # its whole path
-                                 unlit=unlit, lasers=lasers)
+                                 unlit=unlit, lasers=lasers,
+                                 swept=swept_frames(scan, self.model, poses, returns)
+                                 if c.swept else None)
         self._position = (float(last[0, 3]), float(last[1, 3]))
         self._recent.append((points, scan.range_sigma))
         if self.loop_closer is not None:

@@ -271,33 +271,38 @@ def test_a_map_from_another_version_drops_unknown_tuning_but_not_grid_layout(map
         Mapper.load(layout)
 
 
-def test_the_lasers_rays_are_a_setting_read_from_toml_and_checked(tmp_path):
-    """`laser_rays` (on by default): the Mapper clears along the laser's rays too; a TOML
-    file may turn it off, and anything but true or false is refused by name."""
-    assert MapperConfig().laser_rays is True
+@pytest.mark.parametrize("name", ["laser_rays", "swept"])
+def test_the_lasers_rays_are_a_setting_read_from_toml_and_checked(tmp_path, name):
+    """`laser_rays` and `swept` (on by default): the Mapper clears along the laser's rays
+    too, and misses what its plane swept unlit; a TOML file may turn either off, and
+    anything but true or false is refused by name."""
+    assert getattr(MapperConfig(), name) is True
     path = tmp_path / "mapper.toml"
-    path.write_text("laser_rays = false\n")
+    path.write_text(f"{name} = false\n")
     config = MapperConfig.load(path)
-    assert config.laser_rays is False
+    assert getattr(config, name) is False
     path.write_text(config.to_toml())
     assert MapperConfig.load(path) == config
-    with pytest.raises(MapError, match="laser_rays"):
-        MapperConfig(laser_rays=1)
+    with pytest.raises(MapError, match=name):
+        MapperConfig(**{name: 1})
 
 
-def test_the_mapper_fuses_with_the_lasers_rays_as_configured():
+@pytest.mark.parametrize("swept", [True, False])
+def test_the_mapper_fuses_with_the_lasers_rays_as_configured(swept):
     """The people corridor's first scans fused by the Mapper at the true poses, with and
-    without the laser's rays: each grid is the one `HeightGrid.insert` builds given the
-    laser's emitters or not, and the two differ (the laser's rays clear more)."""
+    without the laser's rays (and its swept frames, or not): each grid is the one
+    `HeightGrid.insert` builds given the laser's emitters or not, and the two differ (the
+    laser's rays clear more)."""
     from scanmap.grid.height_grid import HeightGrid
     from scanmap.grid.rays import laser_origins
+    from scanmap.grid.swept import swept_frames
     from scanmap.grid.unlit import unlit_floor
 
     model = reference_scanner()
     ideal = list(ideal_scans(builtin_scene("people"), model, scans=6))
     grids = {}
     for laser_rays in (True, False):
-        config = MapperConfig(laser_rays=laser_rays, update_obstacles=False)
+        config = MapperConfig(laser_rays=laser_rays, swept=swept, update_obstacles=False)
         mapper = Mapper(model, config, offline=True, initial_pose=ideal[0].pose_start)
         reference = HeightGrid(config.grid)
         for step in ideal:
@@ -307,7 +312,8 @@ def test_the_mapper_fuses_with_the_lasers_rays_as_configured():
             lasers = laser_origins(step.scan, model, poses) if laser_rays else None
             reference.insert(points, origins, float(step.scan.time.max()),
                              stood=poses[..., :2, 3].reshape(-1, 2),
-                             unlit=unlit_floor(step.scan, model, poses), lasers=lasers)
+                             unlit=unlit_floor(step.scan, model, poses), lasers=lasers,
+                             swept=swept_frames(step.scan, model, poses) if swept else None)
         ours, theirs = mapper.grid.layers(), reference.layers()
         for name in ("levels", "counts", "nlev", "seen"):
             np.testing.assert_array_equal(getattr(ours, name), getattr(theirs, name))

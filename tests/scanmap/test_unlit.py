@@ -319,7 +319,8 @@ def test_the_compiled_image_lines_are_those_of_project_head_points_with_distorti
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),
                   cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
-                  returned, np.zeros_like(returned), np.zeros(len(frames), np.int64))
+                  returned, np.zeros_like(returned), np.zeros(len(frames), np.int64),
+                  np.full(returned.shape, np.inf))
     expected = np.zeros_like(returned)
     for point, heading, row in zip(scan.points, scan.heading, slot, strict=True):
         head = np.linalg.inv(model.head_pose(heading)) @ np.append(point, 1.0)

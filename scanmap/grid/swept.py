@@ -1,0 +1,104 @@
+"""Levels the laser plane swept in view and did not light: the space a person left.
+
+Nearer than about 1.6 m no camera ray crosses the heights a person's body left (the
+camera is 1 m up: its rays pass 0.7 m over a cell r away only on their way to floor
+r / 0.3 away), and the laser's rays through them reach the floor past its range. So the
+levels a person left there were never passed: on `people`, 781 of the 1124 cell-scans
+still an obstacle three scans after a person left held a level 0.46-0.80 m up that no ray
+had crossed. The laser's plane sweeps them every scan though, and a surface the plane
+crosses in the camera's view shows the stripe: each image line looks along one line of
+the plane (`scanmap.grid.unlit`). So a frame whose plane passes within SWEEP_TOLERANCE of
+a level's mean hit, where the camera sees it (inside the image, between the scanner's
+least range and REACH), is evidence that nothing is there, unless:
+
+- the level's image line returned a point no farther from the camera than the level
+  (plus OUTSHINE_MARGIN): one peak is kept per line, the strongest, so a nearer surface
+  lit on the same line hides it (a person in front of a wall);
+- a level this scan hit, or a static one, lies on the camera's or the emitter's line to
+  it (outside the 3 x 3 cells round it): hidden or in shadow;
+- this scan hit the level, or a level beside it at its height (NEAR_Z): a face on a
+  cell's edge puts its hits either side of it;
+- the level is static (hit in `static_scans` scans: walls, furniture) or its mean hit
+  lies below ABOVE (the floor, which the laser's lines hit only where they fall, and
+  feet merged with it).
+
+Each such frame costs the level MISSES misses, within the grid's `max_misses` a scan.
+Farther than REACH the stripe fades on the rendered frames (the floor returns on 96-98 %
+of the lines out to 1.75 m, at most 85 % beyond), so an unlit line there proves little.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scanmap.grid import _swept_kernels as sk
+from scanmap.grid.unlit import LineReturns, line_returns
+from scanmap_driver.scan import Scan
+from scanmap_driver.scanner_model import ScannerModel
+
+SWEEP_TOLERANCE = 0.025  # m: half a cell; the plane this near a level's mean hit lights it
+REACH = 3.0  # m from the head's axis (see the module)
+ABOVE = 0.1  # m, map z: lower mean hits are the floor's, or a foot's merged with it
+NEAR_Z = 0.05  # m: a hit this near a level's height in or beside its cell keeps it
+OUTSHINE_MARGIN = 0.1  # m: a return this little farther may still have outshone it
+BLOCK_Z = 0.02  # m: a level this near a sight line's heights blocks it
+MISSES = 2  # per frame that swept a level unlit
+
+
+@dataclass(frozen=True)
+class SweptFrames:
+    """A scan's frames as `HeightGrid.insert(swept=...)` reads them (see the module).
+
+    to_head: (F, 4, 4) T_head_map of each frame; cameras, emitters: (F, 3) the camera
+    centre and the laser's emitter in map; nearest: (F, W) per image line the least
+    distance (m) from the camera of its returns (inf: none); optics: the camera, laser and
+    limits, packed for the kernel (`_swept_kernels.O_*`); box: (x0, y0, x1, y1) in map,
+    the cells within REACH of the head's axis at the frames.
+    """
+
+    to_head: np.ndarray
+    cameras: np.ndarray
+    emitters: np.ndarray
+    nearest: np.ndarray
+    optics: np.ndarray
+    box: np.ndarray
+
+
+def swept_frames(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None,
+                 returns: LineReturns | None = None) -> SweptFrames:
+    """The frames of `scan` at `pose` (4x4 map <- base_link, or (F, 4, 4) one per frame
+    indexed by its frame_index, as `scan_rays` takes it) that returned a point on the
+    laser plane; `returns`: `line_returns(scan, model)` when already at hand."""
+    pose = np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64)
+    returns = returns or line_returns(scan, model)
+    keep = ~returns.foreign
+    frames = returns.frames[keep]
+    headings = scan.heading[returns.first[keep]]
+    base = np.broadcast_to(pose, (len(frames), 4, 4)) if pose.ndim == 2 else pose[frames]
+    turn = np.zeros((len(frames), 4, 4))  # Rz(heading), as `ScannerModel.head_pose`
+    turn[:, 0, 0] = turn[:, 1, 1] = np.cos(headings)
+    turn[:, 1, 0] = np.sin(headings)
+    turn[:, 0, 1] = -turn[:, 1, 0]
+    turn[:, 2, 2] = turn[:, 3, 3] = 1.0
+    heads = np.einsum("fij,jk,fkl->fil", base, model.head_mount.pose, turn)
+    cameras = heads[:, :3, :3] @ np.array(model.camera_mount.position) + heads[:, :3, 3]
+    emitters = heads[:, :3, :3] @ np.array(model.laser.origin) + heads[:, :3, 3]
+    cam = model.camera
+    optics = np.zeros(sk.N_OPTICS)
+    optics[sk.O_CAMERA:sk.O_CAMERA + 3] = model.camera_mount.position
+    optics[sk.O_TO_CAMERA:sk.O_TO_CAMERA + 9] = model.camera_mount.rotation.T.ravel()
+    optics[sk.O_INTRINSICS:sk.O_INTRINSICS + 4] = (cam.fx, cam.fy, cam.cx, cam.cy)
+    optics[sk.O_DIST:sk.O_DIST + 5] = cam.dist_coeffs
+    optics[sk.O_LASER:sk.O_LASER + 6] = (*model.laser.origin, *model.laser.normal)
+    optics[[sk.O_MIN_RANGE, sk.O_REACH, sk.O_WIDTH, sk.O_HEIGHT, sk.O_TOLERANCE, sk.O_ABOVE,
+            sk.O_NEAR_Z, sk.O_OUTSHINE, sk.O_BLOCK_Z, sk.O_MISSES]] = (
+        model.min_range, min(REACH, model.max_range), cam.width, cam.height,
+        SWEEP_TOLERANCE, ABOVE, NEAR_Z, OUTSHINE_MARGIN, BLOCK_Z, MISSES)
+    box = np.zeros(4)
+    if len(heads):
+        box = np.concatenate([heads[:, :2, 3].min(axis=0) - REACH,
+                              heads[:, :2, 3].max(axis=0) + REACH])
+    return SweptFrames(np.linalg.inv(heads), cameras, emitters,
+                       np.ascontiguousarray(returns.nearest[keep]), optics, box)
