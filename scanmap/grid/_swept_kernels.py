@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 
 from scanmap.grid._kernels import (
+    FP_MASK_DZ,
     FP_RES,
     FP_X0,
     FP_Y0,
@@ -23,6 +24,7 @@ from scanmap.grid._kernels import (
     MZ,
     SCANS,
     STAMP,
+    _beside_seen_in,
     _cell_offset,
     _dda_setup,
     _miss,
@@ -146,8 +148,9 @@ def _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, to_head,
 def miss_swept_levels(to_head, cameras, emitters, nearest, optics, box, tile_index, lev_f,
                       lev_n, lev_flag, nlev, fp, ip) -> int:
     """Miss the levels in the cells of box (x0, y0, x1, y1, map) that the scan's frames
-    swept unlit (`swept`): not static, not hit by this scan in or beside their cell, mean
-    hit above optics' `above`; O_MISSES misses per such frame, within the grid's
+    swept unlit (`swept`): not static nor beside a static level at their heights (a
+    face's rim or end, `_beside_seen_in`), not hit by this scan in or beside their cell,
+    mean hit above optics' `above`; O_MISSES misses per such frame, within the grid's
     `max_misses` a scan. Returns the levels removed."""
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
@@ -170,7 +173,10 @@ def miss_swept_levels(to_head, cameras, emitters, nearest, optics, box, tile_ind
                 if np.int64(lev_n[li, SCANS]) >= static_scans or pz < optics[O_ABOVE] \
                         or _hit_now(lev_n, lev_flag, li, scan) \
                         or _hit_beside(lev_f, lev_n, lev_flag, nlev, tile_index, ix, iy, pz,
-                                       optics[O_NEAR_Z], shift, levels, scan):
+                                       optics[O_NEAR_Z], shift, levels, scan) \
+                        or _beside_seen_in(lev_f, lev_n, nlev, tile_index, ix, iy,
+                                           lev_f[li, LO], lev_f[li, HI], fp[FP_MASK_DZ], shift,
+                                           levels, static_scans):
                     continue
                 px = x0 + (ix + 0.5) * res + lev_f[li, MX]
                 py = y0 + (iy + 0.5) * res + lev_f[li, MY]

@@ -279,7 +279,12 @@ def test_the_kernel_misses_what_the_plain_reference_does(left):
                 beside = any(_hit_now(grid, lj, scan) and lev_f[lj, gk.LO] - NEAR_Z <= z
                              <= lev_f[lj, gk.HI] + NEAR_Z for dx in (-1, 0, 1)
                              for dy in (-1, 0, 1) for lj in _levels(grid, ix + dx, iy + dy))
-                if lev_n[li, gk.SCANS] >= c.static_scans or z < ABOVE or beside:
+                by_static = any(lev_n[lj, gk.SCANS] >= c.static_scans
+                                and lev_f[lj, gk.LO] - c.mask_dz <= lev_f[li, gk.HI]
+                                and lev_f[li, gk.LO] <= lev_f[lj, gk.HI] + c.mask_dz
+                                for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy
+                                for lj in _levels(grid, ix + dx, iy + dy))
+                if lev_n[li, gk.SCANS] >= c.static_scans or z < ABOVE or beside or by_static:
                     continue
                 p = np.array([c.corner + (ix + 0.5) * c.resolution + lev_f[li, gk.MX],
                               c.corner + (iy + 0.5) * c.resolution + lev_f[li, gk.MY], z])
