@@ -175,6 +175,16 @@ def _dda_setup(gx0: float, gy0: float, gx1: float, gy1: float):
     return ix, iy, sx, sy, tmx, tmy, tdx, tdy, abs(ex - ix) + abs(ey - iy)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _dda_step(ix: int, iy: int, sx: int, sy: int, tmx: float, tmy: float, tdx: float,
+              tdy: float):
+    """One Amanatides-Woo step into the next cell: (ix, iy, t where it is entered, tmx,
+    tmy)."""
+    if tmx < tmy:
+        return ix + sx, iy, tmx, tmx + tdx, tmy
+    return ix, iy + sy, tmy, tmx, tmy + tdy
+
+
 @njit(cache=True, nogil=True)
 def _request_tile(tile_index, ty, tx, out, count) -> int:
     """Mark tile (ty, tx) requested (-2) and list it if it has no slot; -1 when out is full."""
@@ -223,12 +233,7 @@ def collect_missing_tiles(points: np.ndarray, origins: np.ndarray, cls: np.ndarr
             if count < 0:
                 return -1
             count = _request_tile(tile_index, iy, ix, out, count)
-            if tmx < tmy:
-                ix += sx
-                tmx += tdx
-            else:
-                iy += sy
-                tmy += tdy
+            ix, iy, _, tmx, tmy = _dda_step(ix, iy, sx, sy, tmx, tmy, tdx, tdy)
         if count < 0:
             return -1
     return count
@@ -849,14 +854,7 @@ def _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, 
                                                     scan, t_in * length >= see_through,
                                                     from_laser)
             b_in = b_out
-            if tmx < tmy:
-                ix += sx
-                t_in = tmx
-                tmx += tdx
-            else:
-                iy += sy
-                t_in = tmy
-                tmy += tdy
+            ix, iy, t_in, tmx, tmy = _dda_step(ix, iy, sx, sy, tmx, tmy, tdx, tdy)
     return n_cleared, key
 
 

@@ -27,6 +27,7 @@ from scanmap.grid._kernels import (
     _beside_seen_in,
     _cell_offset,
     _dda_setup,
+    _dda_step,
     _miss,
     _touch,
 )
@@ -88,14 +89,7 @@ def _blocked(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, qx, qy, qz, f
                             _hit_now(lev_n, lev_flag, li, scan)
                             or np.int64(lev_n[li, SCANS]) >= static_scans):
                         return True
-        if tmx < tmy:
-            ix += sx
-            t_in = tmx
-            tmx += tdx
-        else:
-            iy += sy
-            t_in = tmy
-            tmy += tdy
+        ix, iy, t_in, tmx, tmy = _dda_step(ix, iy, sx, sy, tmx, tmy, tdx, tdy)
     return False
 
 

@@ -5,11 +5,12 @@ r / 0.3 away, and it sees the floor from 1.49 to 3.99 m: so only for r within 0.
 m. Farther, no camera ray crosses the heights a person's body left there, and the
 laser's rays through them (from 0.5 m up) reach the floor past its range: on `people`,
 781 of the 1124 cell-scans still an obstacle three scans after a person left held a
-level 0.46-0.80 m up, most of them never passed. The laser's plane sweeps them every scan though, and a surface the plane
-crosses in the camera's view shows the stripe: each image line looks along one line of
-the plane (`scanmap.grid.unlit`). So a frame whose plane passes within SWEEP_TOLERANCE of
-a level's mean hit, where the camera sees it (inside the image, between the scanner's
-least range and REACH), is evidence that nothing is there, unless:
+level 0.46-0.80 m up, most of them never passed. The laser's plane sweeps them every
+scan though, and a surface the plane crosses in the camera's view shows the stripe: each
+image line looks along one line of the plane (`scanmap.grid.unlit`). So a frame whose
+plane passes within SWEEP_TOLERANCE of a level's mean hit, where the camera sees it
+(inside the image, between the scanner's least range and REACH), is evidence that
+nothing is there, unless:
 
 - the level's image line returned a point no farther from the camera than the level
   (plus OUTSHINE_MARGIN): one peak is kept per line, the strongest, so a nearer surface
