@@ -35,9 +35,9 @@ from scanmap.grid.unlit import project_to_image
 
 # Fields of the optics vector (`swept.SweptFrames.optics`).
 (O_CAMERA, O_TO_CAMERA, O_INTRINSICS, O_DIST, O_LASER, O_MIN_RANGE, O_REACH, O_WIDTH,
- O_HEIGHT, O_TOLERANCE, O_ABOVE, O_NEAR_Z, O_OUTSHINE, O_BLOCK_Z, O_MISSES) = (
-    0, 3, 12, 16, 21, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36)
-N_OPTICS = 37
+ O_HEIGHT, O_TOLERANCE, O_ABOVE, O_NEAR_Z, O_OUTSHINE, O_BLOCK_Z, O_MISSES, O_DARK_REACH) = (
+    0, 3, 12, 16, 21, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37)
+N_OPTICS = 38
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -97,7 +97,8 @@ def _blocked(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, qx, qy, qz, f
 def _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, to_head, cameras,
                   emitters, nearest, optics, fp, shift, levels, scan, static_scans) -> int:
     """How many of the scan's frames swept point p (map) with the laser plane, in view,
-    unshadowed and unhidden, without their image column returning anything as near."""
+    unshadowed and unhidden, without their image column returning anything as near (nor
+    anything at all, farther than optics' dark reach)."""
     lx, ly, lz = optics[O_LASER], optics[O_LASER + 1], optics[O_LASER + 2]
     nx, ny, nz = optics[O_LASER + 3], optics[O_LASER + 4], optics[O_LASER + 5]
     cx, cy, cz = optics[O_CAMERA], optics[O_CAMERA + 1], optics[O_CAMERA + 2]
@@ -124,7 +125,10 @@ def _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, to_head,
         outshone = False
         for w in range(max(column - 1, 0), min(column + 2, width)):
             outshone |= nearest[f, w] <= distance + optics[O_OUTSHINE]
-        if outshone:
+        dark = True  # nothing returned on the line or beside it
+        for w in range(max(column - 1, 0), min(column + 2, width)):
+            dark &= not nearest[f, w] < np.inf
+        if outshone or (dark and reach > optics[O_DARK_REACH]):
             continue
         margin = optics[O_BLOCK_Z]
         if _blocked(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, cameras[f, 0],

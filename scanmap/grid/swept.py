@@ -15,6 +15,10 @@ nothing is there, unless:
 - the level's image line returned a point no farther from the camera than the level
   (plus OUTSHINE_MARGIN): one peak is kept per line, the strongest, so a nearer surface
   lit on the same line hides it (a person in front of a wall);
+- the line and the two beside it returned nothing at all, and the level lies farther
+  than DARK_REACH: the stripe fades with range, and a line may show nothing although a
+  surface was lit (a wall above a cabinet 2.1 m off, seen in one scan and lost on the
+  next's dark lines: 9 wall cell-scans of the rendered `people` eroded so);
 - a level this scan hit, or a static one, lies on the camera's or the emitter's line to
   it (outside the 3 x 3 cells round it): hidden or in shadow;
 - this scan hit the level, or a level beside it at its height (NEAR_Z): a face on a
@@ -26,9 +30,9 @@ nothing is there, unless:
   laser's lines hit only where they fall, and feet merged with it).
 
 Each such frame costs the level MISSES misses, within the grid's `max_misses` a scan.
-Farther than REACH an unlit line proves little: the stripe fades with range (on the
-rendered frames the floor returns on 96-98 % of the lines out to 1.75 m, at most 85 %
-beyond), and the plane's lines lie farther apart. On `people` (`python -m
+The stripe fades with range: on the rendered frames the floor returns on 96-98 % of the
+lines out to 1.75 m (DARK_REACH), at most 85 % beyond; farther than REACH the plane's
+lines lie far apart too. On `people` (`python -m
 benchmarks.bench_hazards`) the ghost cell-scans went 1124 -> 439 of 42,922, the walls
 unchanged; see docs/hazards.md. The frames are not kept with a scan for loop-closure
 rebuilds (`scanmap.mapping.rebuild`): a rebuilt grid holds what the rays alone leave.
@@ -47,6 +51,7 @@ from scanmap_driver.scanner_model import ScannerModel
 
 SWEEP_TOLERANCE = 0.025  # m: half a cell; the plane this near a level's mean hit lights it
 REACH = 3.0  # m from the head's axis (see the module)
+DARK_REACH = 1.75  # m: farther, a line without any return proves nothing (a faded stripe)
 ABOVE = 0.1  # m, map z: lower mean hits are the floor's, or a foot's merged with it
 NEAR_Z = 0.05  # m: a hit this near a level's height in or beside its cell keeps it
 OUTSHINE_MARGIN = 0.1  # m: a return this little farther may still have outshone it
@@ -100,9 +105,9 @@ def swept_frames(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
     optics[sk.O_DIST:sk.O_DIST + 5] = cam.dist_coeffs
     optics[sk.O_LASER:sk.O_LASER + 6] = (*model.laser.origin, *model.laser.normal)
     optics[[sk.O_MIN_RANGE, sk.O_REACH, sk.O_WIDTH, sk.O_HEIGHT, sk.O_TOLERANCE, sk.O_ABOVE,
-            sk.O_NEAR_Z, sk.O_OUTSHINE, sk.O_BLOCK_Z, sk.O_MISSES]] = (
+            sk.O_NEAR_Z, sk.O_OUTSHINE, sk.O_BLOCK_Z, sk.O_MISSES, sk.O_DARK_REACH]] = (
         model.min_range, min(REACH, model.max_range), cam.width, cam.height,
-        SWEEP_TOLERANCE, ABOVE, NEAR_Z, OUTSHINE_MARGIN, BLOCK_Z, MISSES)
+        SWEEP_TOLERANCE, ABOVE, NEAR_Z, OUTSHINE_MARGIN, BLOCK_Z, MISSES, DARK_REACH)
     box = np.zeros(4)
     if len(heads):
         box = np.concatenate([heads[:, :2, 3].min(axis=0) - REACH,

@@ -124,12 +124,22 @@ class Renderer:
 
     def __post_init__(self) -> None:
         self.world = World(self.scene, self.model.encoder)
+        self._scan_world: tuple[int, World] | None = None  # people placed for one scan
         self.rays = camera_rays(self.model)
         self._disk_columns = self._find_disk_columns()
         self._scene_rows = np.arange(0, self.model.camera.height, self.scene_step)
         self._scene_directions = np.ascontiguousarray(self.rays.directions[self._scene_rows])
         self._disk_directions = np.ascontiguousarray(
             self.rays.directions[:, self._disk_columns:])
+
+    def world_at(self, index: int) -> World:
+        """The world scan `index` sees: the scene with its people where their tracks put
+        them then (`Scene.at_scan`); built once per scan, kept while its frames render."""
+        if not self.scene.people:
+            return self.world
+        if self._scan_world is None or self._scan_world[0] != index:
+            self._scan_world = (index, World(self.scene.at_scan(index), self.model.encoder))
+        return self._scan_world[1]
 
     def _find_disk_columns(self) -> int:
         """First image column where the disk (or its blur) can appear at any heading."""
@@ -172,20 +182,21 @@ class Renderer:
         map_head, base_head = map_head[0], base_head[0]
         row_time, offsets = self._offsets(plan, time)
         rows, directions = self._scene_rows, self._scene_directions
-        hits = hit_map(self.world.world, rays.centre, directions, map_head, self.hit_step,
+        world = self.world_at(plan.index)
+        hits = hit_map(world.world, rays.centre, directions, map_head, self.hit_step,
                        self.threads)
         radiance = shade_scene(hits.plane, hits.t, directions, rays.centre,
                                map_head[:3, :3], map_head[:3, 3],
-                               self.world.world.planes.planes[:, :3], self.world.plane_axes,
-                               self.world.plane_albedo,
+                               world.world.planes.planes[:, :3], world.plane_axes,
+                               world.plane_albedo,
                                LIGHT_DIRECTION, self.scene.ambient * SCENE_GAIN,
                                self.scene.texture)
         flow = self._flow(hits.t, directions)
         flow[:, :, 1] /= self.scene_step  # in rows of the coarse grid
         radiance = between_rows(blur_along_flow(radiance, flow, offsets[rows]), rows,
                                 model.camera.height)
-        stripe = self._stripe(plan, hits, rows, base, heading, row_time)
-        laser = self._laser_layer(plan, stripe, base, row_time, rng)
+        stripe = self._stripe(world, plan, hits, rows, base, heading, row_time)
+        laser = self._laser_layer(world, plan, stripe, base, row_time, rng)
         for channel, share in enumerate(self.laser.crosstalk):
             radiance[:, :, channel] += np.float32(share) * laser
         scene_t = np.repeat(hits.t, self.scene_step, axis=0)[:model.camera.height]
@@ -199,10 +210,10 @@ class Renderer:
         return rotation_flow(t, directions, self.rays.centre,
                              self.model.camera_mount.rotation, cam.fx, cam.fy)
 
-    def _stripe(self, plan: ScanPlan, hits: HitMap, rows: np.ndarray, base: np.ndarray,
-                heading: float, row_time: np.ndarray) -> StripePoints:
+    def _stripe(self, world: World, plan: ScanPlan, hits: HitMap, rows: np.ndarray,
+                base: np.ndarray, heading: float, row_time: np.ndarray) -> StripePoints:
         """Every visible stripe point; under a rolling shutter, each at its row's heading."""
-        points = points_from_hit_map(self.world, self.model, hits.plane, hits.t, rows, base,
+        points = points_from_hit_map(world, self.model, hits.plane, hits.t, rows, base,
                                      heading, self.threads)
         if self.camera.rolling_shutter == 0.0 or len(points) == 0:
             return points
@@ -210,12 +221,13 @@ class Renderer:
         v = points.v
         for _ in range(ROLLING_ITERATIONS):
             headings = plan.motion.heading_at(np.interp(v, np.arange(row_time.size), row_time))
-            v = rows_at(self.world, self.model, points, bases, headings)
-        return stripe_points(self.world, self.model, np.arange(len(points)), points.u, v,
+            v = rows_at(world, self.model, points, bases, headings)
+        return stripe_points(world, self.model, np.arange(len(points)), points.u, v,
                              points.plane, bases, headings, self.threads)
 
-    def _laser_layer(self, plan: ScanPlan, stripe: StripePoints, base: np.ndarray,
-                     row_time: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def _laser_layer(self, world: World, plan: ScanPlan, stripe: StripePoints,
+                     base: np.ndarray, row_time: np.ndarray, rng: np.random.Generator
+                     ) -> np.ndarray:
         """(H, W) red laser radiance of the lit stripe points, swept over the exposure."""
         cam = self.model.camera
         layer = np.zeros((cam.height, cam.width), dtype=np.float32)
@@ -225,8 +237,8 @@ class Renderer:
         bases = np.repeat(base[None], len(lit), axis=0)
         when = np.interp(lit.v, np.arange(row_time.size), row_time)
         half = 0.5 * self.camera.exposure
-        v_open = rows_at(self.world, self.model, lit, bases, plan.motion.heading_at(when - half))
-        v_close = rows_at(self.world, self.model, lit, bases, plan.motion.heading_at(when + half))
+        v_open = rows_at(world, self.model, lit, bases, plan.motion.heading_at(when - half))
+        v_close = rows_at(world, self.model, lit, bases, plan.motion.heading_at(when + half))
         v_open = np.where(np.isfinite(v_open), v_open, lit.v)
         v_close = np.where(np.isfinite(v_close), v_close, lit.v)
         depth = (lit.head - self.rays.centre) @ self.model.camera_mount.rotation[:, 2]

@@ -63,7 +63,6 @@ def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: Scanner
     writer = RecordingWriter(out, model, source="simulator", extra={
         "scene": scene.name, "seed": seed, "ambient": scene.ambient, "camera": asdict(camera)})
     _write_common_truth(out, scene, plans)
-    plane_object = scene_planes(scene).plane_object
     with _frame_pool(scene, model, camera, workers) as render:
         for plan in plans:
             frames = render([(plan, i, seed) for i in range(plan.frame_times.shape[0])])
@@ -74,6 +73,7 @@ def simulate_recording(scene: Scene, out: str | os.PathLike[str], model: Scanner
                     scan.log_motor(plan.stamp + entry["t"], entry["command"],
                                    duty=entry["duty"])
                 scan.set_odometry(plan.odom_start, plan.odom_end)
+            plane_object = scene_planes(scene.at_scan(plan.index)).plane_object
             ScanTruth.from_frames(plan, [f.truth for f in frames], plane_object
                                   ).save(truth_path(out, plan.index))
             if progress:

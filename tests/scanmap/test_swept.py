@@ -18,6 +18,7 @@ from scanmap.grid.rays import laser_origins, scan_rays
 from scanmap.grid.swept import (
     ABOVE,
     BLOCK_Z,
+    DARK_REACH,
     MISSES,
     NEAR_Z,
     OUTSHINE_MARGIN,
@@ -125,6 +126,17 @@ def test_a_line_that_returned_something_nearer_proves_nothing():
     a, b = plain.layers((-1.1, -1.1, 3.0, 1.1)), outshone.layers((-1.1, -1.1, 3.0, 1.1))
     np.testing.assert_array_equal(a.nlev, b.nlev)
     np.testing.assert_array_equal(a.levels, b.levels)
+
+
+def test_a_line_without_any_return_proves_nothing_beyond_dark_reach():
+    """The stripe fades with range: with every line dark, a person 2.3 m off who left
+    keeps their levels as without the swept frames; one 1.2 m off loses them."""
+    for x, kept in ((2.3, True), (1.2, False)):
+        scene = corridor(person(x, 0.35, until=GONE))
+        dark, plain = mapped(scene, True, nearest=np.inf)[-1], mapped(scene, False)[-1]
+        counts = raised_levels(dark, x, 0.35, 0.25), raised_levels(plain, x, 0.35, 0.25)
+        assert counts[1] > 10
+        assert (counts[0] == counts[1]) if kept else (counts[0] < 0.5 * counts[1])
 
 
 def test_a_person_hidden_behind_another_stays():
@@ -250,8 +262,9 @@ def _sweeps_reference(grid: HeightGrid, frames, p: np.ndarray, scan: int) -> int
         if not (0 <= u < MODEL.camera.width and 0 <= v < MODEL.camera.height):
             continue
         line = int(np.rint(u))
-        if (frames.nearest[f, max(line - 1, 0):line + 2]
-                <= np.linalg.norm(head - camera) + OUTSHINE_MARGIN).any():
+        beside = frames.nearest[f, max(line - 1, 0):line + 2]
+        if (beside <= np.linalg.norm(head - camera) + OUTSHINE_MARGIN).any() \
+                or (np.isinf(beside).all() and np.hypot(head[0], head[1]) > DARK_REACH):
             continue
         if _blocked_reference(grid, p, frames.cameras[f], scan) \
                 or _blocked_reference(grid, p, frames.emitters[f], scan):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from scanmap_driver import reference_scanner, triangulate
-from scanmap_driver.sim import builtin_scene, plan_scans
+from scanmap_driver.sim import Scene, builtin_scene, plan_scans
 from scanmap_driver.sim.camera_effects import SimCameraConfig
 from scanmap_driver.sim.laser_stripe import head_poses, points_from_fan
 from scanmap_driver.sim.render import LaserAppearance, Renderer
@@ -200,3 +200,24 @@ def test_the_encoder_disk_shows_its_code_where_the_geometry_puts_it(office):
     white = [value for bit, value in seen if bit == 1]
     black = [value for bit, value in seen if bit == 0]
     assert min(white, default=1.0) > 0.3 and max(black, default=0.0) < 0.1
+
+
+def test_people_are_rendered_where_their_track_puts_them_at_each_scan():
+    """A person 1 m ahead of the robot at scan 0, gone from scan 1: the frames of scan 0
+    light them and those of scan 1 do not, and every lit point lies on the scene as that
+    scan sees it (`Scene.at_scan`, the analytic surfaces)."""
+    data = builtin_scene("people").to_dict()
+    data["people"] = [{"radius": 0.2, "height": 1.7, "color": [90, 70, 160], "name": "p",
+                       "track": [[0, 1.0, 0.0], [0.5, 1.0, 0.0], [1, 30.0, 0.0]]}]
+    scene = Scene.from_dict(data)
+    renderer = Renderer(scene, MODEL)
+    on_person = []
+    for plan in plan_scans(scene, MODEL, seed=0, count=2):
+        lit = 0
+        for frame in range(0, plan.frame_times.shape[0], 4):
+            stripe = renderer.light(plan, frame, np.random.default_rng(frame)).truth.stripe
+            points = stripe.select(stripe.lit).map
+            assert surface_distance(scene.at_scan(plan.index), points).max() < 5e-3
+            lit += int((np.abs(np.hypot(points[:, 0] - 1.0, points[:, 1]) - 0.2) < 5e-3).sum())
+        on_person.append(lit)
+    assert on_person[0] > 50 and on_person[1] == 0
