@@ -3,7 +3,7 @@ and glass surfaces (the built-in `hazards` scene) and people walking past (`peop
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
         [--mixed N] [--step N] [--ramp N] [--people N] [--rendered N] [--first SEED]
-        [--pixel-sigma PX]
+        [--pixel-sigma PX] [--rendered-people]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
 takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N` or `--people N`, on N
@@ -67,6 +67,9 @@ slope), but for the whole pipeline's row. Rows:
 * rooms with people: the ghost and erosion measures on PEOPLE_ROOMS rooms drawn afresh
   (`random_rooms.people_room`: cabinets turned against the walls, people walking past
   and standing), summed over them, and the rooms where a wall or cabinet eroded.
+* `--rendered-people`: the ghost and erosion measures on `people` through its rendered
+  frames (`rendered_steps`: extraction and decoding as `scanmap map` does them, fused at
+  the true poses), where the stripe fades with range and drops out.
 * through the whole pipeline: `hazards`, RENDERED_ROOMS random rooms and as many mixed
   rooms with their
   webcam frames rendered (`scanmap simulate`: the stripe's blur, noise and the encoder
@@ -92,6 +95,7 @@ import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
 from benchmarks.random_rooms import mixed_room, people_room, ramp_room, random_room, step_room
+from scanmap.datasets.recordings import ScanSource
 from scanmap.evaluation.ground_truth import (
     EDGE_RASTER,
     drop_off_errors,
@@ -182,6 +186,26 @@ def mapped(scene: Scene, scans: int | None = None, seed: int = 0,
         fuse(grid, ideal)
         layers = grid.layers(bounds)
         yield Step(index, ideal, layers, segment(layers, ROBOT, params))
+
+
+def rendered_steps(scene: Scene, scans: int | None = None, seed: int = 0) -> Iterator[Step]:
+    """`mapped` on the scene's webcam frames: rendered (`simulate_recording`), the scans
+    assembled from them as `scanmap map` does (laser extraction, encoder decoding), fused
+    at the true poses (no registration: the frames' effect alone). Each Step's `ideal`
+    holds the assembled scan with the ideal scan's truth (the robot stands still during
+    a scan in these scenes)."""
+    grid = HeightGrid(GridConfig(extent=50.0))
+    bounds = scene_window(scene)
+    with tempfile.TemporaryDirectory(prefix="scanmap-rendered-") as scratch:
+        recording = simulate_recording(scene, f"{scratch}/rec", MODEL, seed=seed,
+                                       scans=scans, workers=2)
+        for index, (ideal, item) in enumerate(zip(ideal_scans(scene, seed=seed, scans=scans),
+                                                  ScanSource.open(recording, MODEL),
+                                                  strict=True)):
+            assembled = replace(ideal, scan=item.scan, frame_poses=ideal.pose_start)
+            fuse(grid, assembled)
+            layers = grid.layers(bounds)
+            yield Step(index, assembled, layers, segment(layers, ROBOT, PARAMS))
 
 
 def truth_classes(seg: Segmentation, raster: TruthRaster) -> np.ndarray:
@@ -433,9 +457,10 @@ def person_cells(scene: Scene, truth_shape_of: Segmentation, scans: int) -> np.n
 
 
 def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
-               scene: Scene | None = None) -> dict[str, float]:
+               scene: Scene | None = None, rendered: bool = False) -> dict[str, float]:
     """Ghost cells and wall erosion on a scene with people (the built-in `people`); wall
-    recall with and without the people."""
+    recall with and without the people; `rendered`: through rendered frames
+    (`rendered_steps`), else ideal scans."""
     scene = scene or builtin_scene("people")
     count = len(scene.scan_poses) if scans is None else scans
     raster = truth_raster(scene)
@@ -445,7 +470,7 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
     seen_ghosts, seen_checked = np.zeros(2, int), np.zeros(2, int)  # camera; camera or laser
     for label, run in (("people", scene), ("empty", replace(scene, people=()))):
         once = None
-        for step in mapped(run, count, seed):
+        for step in (rendered_steps if rendered else mapped)(run, count, seed):
             truth = truth_classes(step.seg, raster)
             walls = truth == TRUE_OBSTACLE
             obstacle = step.seg.state == OBSTACLE
@@ -689,6 +714,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--people", type=int, metavar="N",
                         help="instead: the ghost and erosion measures on N rooms with "
                         "people (benchmarks.random_rooms), each and summed")
+    parser.add_argument("--rendered-people", action="store_true",
+                        help="instead: the ghost and erosion measures on the built-in "
+                        "people scene through rendered frames (true poses)")
     parser.add_argument("--pixel-sigma", type=float, metavar="PX",
                         help="the rooms' laser peak noise (px; default the scanner model's "
                         "0.1, the extraction leaves 0.33 on the real flat-board images)")
@@ -710,8 +738,11 @@ def main(argv: list[str] | None = None) -> int:
     rooms = people_rooms(args.people or 0, 24 if args.quick else None, args.first)
     if rooms:
         print(json.dumps(rooms | {"sum": people_summary(list(rooms.values()))}, indent=1))
+    if args.rendered_people:
+        print(json.dumps({"people (rendered)": people_run(24 if args.quick else None,
+                                                          rendered=True)}, indent=1))
     if not (args.scene or args.random or args.mixed or args.step or args.ramp or args.people
-            or args.rendered):
+            or args.rendered or args.rendered_people):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))

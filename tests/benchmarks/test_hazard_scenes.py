@@ -56,3 +56,21 @@ def test_a_scan_thinned_for_the_timing_keeps_whole_frames_evenly():
     assert np.diff(np.flatnonzero(np.isin(frames, kept))).max() <= 2  # none skipped twice
     assert len(thin.true_points) == len(thin.scan)
     assert _thinned(ideal, 10**9).scan.points.shape == ideal.scan.points.shape
+
+
+def test_the_rendered_people_run_reads_the_frames_rendered_with_the_people():
+    """`rendered_steps` on the people corridor's first five scans: each step holds the
+    scan assembled from its rendered frames (people included: fewer points reach the
+    walls than in the empty corridor's), and `people_run` measures them."""
+    from dataclasses import replace
+
+    from benchmarks.bench_hazards import people_run, rendered_steps
+
+    scene = builtin_scene("people")
+    short = replace(scene, scan_poses=scene.scan_poses[:5])
+    with_people = [len(step.ideal.scan) for step in rendered_steps(short)]
+    empty = [len(step.ideal.scan) for step in rendered_steps(replace(short, people=()))]
+    assert all(n > 10000 for n in with_people)
+    assert sum(with_people) < sum(empty)
+    rendered = people_run(5, scene=short, rendered=True)
+    assert rendered["wall_cells_eroded"] == 0 and rendered["wall_recall_people"] > 0.95
