@@ -33,8 +33,9 @@ Each such frame costs the level MISSES misses, within the grid's `max_misses` a 
 The stripe fades with range: on the rendered frames the floor returns on 96-98 % of the
 lines out to 1.75 m (DARK_REACH), at most 85 % beyond; farther than REACH the plane's
 lines lie far apart too. On `people` (`python -m
-benchmarks.bench_hazards`) the ghost cell-scans went 1124 -> 439 of 42,922, the walls
-unchanged; see docs/hazards.md. The frames are not kept with a scan for loop-closure
+benchmarks.bench_hazards`) the ghost cell-scans went 1124 -> 770 of 42,922, through its
+rendered frames 817 -> 545 (`--rendered-people`), the walls unchanged; see
+docs/hazards.md. The frames are not kept with a scan for loop-closure
 rebuilds (`scanmap.mapping.rebuild`): a rebuilt grid holds what the rays alone leave.
 """
 
