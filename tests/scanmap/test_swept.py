@@ -68,9 +68,10 @@ def fuse(grid: HeightGrid, ideal: IdealScan, swept: bool, nearest: float | None 
                 lasers=laser_origins(ideal.scan, MODEL, poses), swept=frames)
 
 
-def mapped(scene: Scene, swept: bool, nearest: float | None = None) -> list[HeightGrid]:
+def mapped(scene: Scene, swept: bool, nearest: float | None = None,
+           extent: float = 20.0) -> list[HeightGrid]:
     """The grid after each scan of `scene` (copies)."""
-    grid, out = HeightGrid(GridConfig(extent=20.0)), []
+    grid, out = HeightGrid(GridConfig(extent=extent)), []
     for ideal in ideal_scans(scene):
         fuse(grid, ideal, swept, nearest)
         out.append(grid.copy())
@@ -137,6 +138,17 @@ def test_a_line_without_any_return_proves_nothing_beyond_dark_reach():
         counts = raised_levels(dark, x, 0.35, 0.25), raised_levels(plain, x, 0.35, 0.25)
         assert counts[1] > 10
         assert (counts[0] == counts[1]) if kept else (counts[0] < 0.5 * counts[1])
+
+
+def test_far_from_the_origin_the_same_levels_are_missed():
+    """The scene moved 2 km off the map's origin: the person who left goes as at the
+    origin, scan by scan."""
+    scene = corridor(person(1.2, 0.35, until=GONE))
+    far = scene.moved(2000.0, -1500.0)
+    near_counts = [raised_levels(g, 1.2, 0.35, 0.25) for g in mapped(scene, True)]
+    far_counts = [raised_levels(g, 2001.2, -1499.65, 0.25)
+                  for g in mapped(far, True, extent=2500.0)]
+    assert far_counts == near_counts
 
 
 def test_a_person_hidden_behind_another_stays():
