@@ -122,11 +122,9 @@ def _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, to_head,
             continue
         distance = np.sqrt((hx - cx) ** 2 + (hy - cy) ** 2 + (hz - cz) ** 2)
         column = int(np.rint(u))
-        outshone = False
+        outshone, dark = False, True  # dark: nothing returned on the line or beside it
         for w in range(max(column - 1, 0), min(column + 2, width)):
             outshone |= nearest[f, w] <= distance + optics[O_OUTSHINE]
-        dark = True  # nothing returned on the line or beside it
-        for w in range(max(column - 1, 0), min(column + 2, width)):
             dark &= not nearest[f, w] < np.inf
         if outshone or (dark and reach > optics[O_DARK_REACH]):
             continue
