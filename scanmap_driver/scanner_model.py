@@ -190,6 +190,15 @@ class ScannerModel:
         """T_base_head at a heading (rad)."""
         return self.head_mount.pose @ make_pose(rot_z(heading), np.zeros(3))
 
+    def head_poses(self, headings: np.ndarray) -> np.ndarray:
+        """(N, 4, 4) T_base_head at each of N headings (rad): `head_pose`, vectorised."""
+        headings = np.asarray(headings, dtype=np.float64).reshape(-1)
+        spin = np.zeros((headings.shape[0], 4, 4))
+        c, s = np.cos(headings), np.sin(headings)
+        spin[:, 0, 0], spin[:, 0, 1], spin[:, 1, 0], spin[:, 1, 1] = c, -s, s, c
+        spin[:, 2, 2] = spin[:, 3, 3] = 1.0
+        return self.head_mount.pose @ spin
+
     @property
     def baseline(self) -> float:
         """Distance (m) from the camera centre to the laser plane."""

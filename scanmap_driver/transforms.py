@@ -36,9 +36,15 @@ def make_pose(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
 
 
 def invert_pose(pose: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4x4 pose (exact for orthonormal rotations)."""
-    rotation = pose[:3, :3]
-    return make_pose(rotation.T, -rotation.T @ pose[:3, 3])
+    """Inverse of a rigid 4x4 pose, or of each of a stack (..., 4, 4) (exact for
+    orthonormal rotations)."""
+    pose = np.asarray(pose, dtype=np.float64)
+    rotation = np.swapaxes(pose[..., :3, :3], -1, -2)
+    inverse = np.zeros_like(pose)
+    inverse[..., :3, :3] = rotation
+    inverse[..., :3, 3] = -np.einsum("...ij,...j->...i", rotation, pose[..., :3, 3])
+    inverse[..., 3, 3] = 1.0
+    return inverse
 
 
 def transform_points(pose: np.ndarray, points: np.ndarray) -> np.ndarray:

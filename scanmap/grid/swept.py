@@ -49,6 +49,7 @@ from scanmap.grid import _swept_kernels as sk
 from scanmap.grid.unlit import LineReturns, line_returns
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel
+from scanmap_driver.transforms import invert_pose
 
 SWEEP_TOLERANCE = 0.025  # m: half a cell; the plane this near a level's mean hit lights it
 REACH = 3.0  # m from the head's axis (see the module)
@@ -89,13 +90,8 @@ def swept_frames(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
     keep = ~returns.foreign
     frames = returns.frames[keep]
     headings = scan.heading[returns.first[keep]]
-    base = np.broadcast_to(pose, (len(frames), 4, 4)) if pose.ndim == 2 else pose[frames]
-    turn = np.zeros((len(frames), 4, 4))  # Rz(heading), as `ScannerModel.head_pose`
-    turn[:, 0, 0] = turn[:, 1, 1] = np.cos(headings)
-    turn[:, 1, 0] = np.sin(headings)
-    turn[:, 0, 1] = -turn[:, 1, 0]
-    turn[:, 2, 2] = turn[:, 3, 3] = 1.0
-    heads = base @ (model.head_mount.pose @ turn)
+    base = pose if pose.ndim == 2 else pose[frames]
+    heads = base @ model.head_poses(headings)
     cameras = heads[:, :3, :3] @ np.array(model.camera_mount.position) + heads[:, :3, 3]
     emitters = heads[:, :3, :3] @ np.array(model.laser.origin) + heads[:, :3, 3]
     cam = model.camera
@@ -113,9 +109,5 @@ def swept_frames(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
     if len(heads):
         box = np.concatenate([heads[:, :2, 3].min(axis=0) - REACH,
                               heads[:, :2, 3].max(axis=0) + REACH])
-    to_head = np.zeros_like(heads)  # rigid: the rotation's transpose
-    to_head[:, :3, :3] = heads[:, :3, :3].transpose(0, 2, 1)
-    to_head[:, :3, 3] = -np.einsum("fji,fj->fi", heads[:, :3, :3], heads[:, :3, 3])
-    to_head[:, 3, 3] = 1.0
-    return SweptFrames(to_head, cameras, emitters,
+    return SweptFrames(invert_pose(heads), cameras, emitters,
                        np.ascontiguousarray(returns.nearest[keep]), optics, box)

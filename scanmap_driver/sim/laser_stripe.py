@@ -103,12 +103,7 @@ class StripePoints:
 def head_poses(model: ScannerModel, base_poses: np.ndarray,
                headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(T_map_head, T_base_head), each (N, 4, 4), from T_map_base (N, 4, 4) and headings."""
-    headings = np.asarray(headings, dtype=np.float64)
-    spin = np.zeros((headings.shape[0], 4, 4))
-    c, s = np.cos(headings), np.sin(headings)
-    spin[:, 0, 0], spin[:, 0, 1], spin[:, 1, 0], spin[:, 1, 1] = c, -s, s, c
-    spin[:, 2, 2] = spin[:, 3, 3] = 1.0
-    base_head = model.head_mount.pose @ spin
+    base_head = model.head_poses(headings)
     return np.asarray(base_poses) @ base_head, base_head
 
 
