@@ -157,15 +157,14 @@ def project_to_image(x: float, y: float, z: float, to_camera: np.ndarray,
 def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
                   mount_inverse: np.ndarray, to_camera: np.ndarray, camera: np.ndarray,
                   intrinsics: np.ndarray, dist: np.ndarray, laser: np.ndarray,
-                  returned: np.ndarray, floor: np.ndarray, off_plane: np.ndarray,
-                  nearest: np.ndarray) -> None:
-    """Mark returned[slot, u] for the image line u of each point (base_link, seen at its
-    heading; `project_to_image`), floor[slot, u] where the point lies within
-    FLOOR_TOLERANCE of z = 0, keep in nearest[slot, u] the least distance from the camera
-    of the line's points, and count in off_plane[slot] the points farther than
-    PLANE_TOLERANCE from the laser plane (origin, normal: laser)."""
+                  nearest: np.ndarray, floor: np.ndarray, off_plane: np.ndarray) -> None:
+    """Keep in nearest[slot, u] the least distance from the camera of the points on image
+    line u (base_link, each seen at its heading; `project_to_image`; inf stays where
+    none), mark floor[slot, u] where one lies within FLOOR_TOLERANCE of z = 0, and count
+    in off_plane[slot] the points farther than PLANE_TOLERANCE from the laser plane
+    (origin, normal: laser)."""
     rotation = to_camera.ravel()
-    width = returned.shape[1]
+    width = nearest.shape[1]
     last, c, s = np.nan, 1.0, 0.0
     for i in range(points.shape[0]):
         if headings[i] != last:
@@ -189,7 +188,6 @@ def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
         u = np.rint(u)
         if 0.0 <= u < width:
             line = int(u)
-            returned[slot[i], line] = True
             nearest[slot[i], line] = min(nearest[slot[i], line],
                                          np.sqrt(hx * hx + hy * hy + hz * hz))
             if abs(points[i, 2]) <= FLOOR_TOLERANCE:
@@ -373,18 +371,17 @@ def line_returns(scan: Scan, model: ScannerModel) -> LineReturns:
     """The image lines each frame of `scan` returned a point on (see `LineReturns`)."""
     frames, first, slot = frame_slots(scan.frame_index)
     cam = model.camera
-    returned = np.zeros((len(frames), cam.width), bool)
-    floor = np.zeros_like(returned)
-    nearest = np.full(returned.shape, np.inf)
+    nearest = np.full((len(frames), cam.width), np.inf)
+    floor = np.zeros(nearest.shape, bool)
     off_plane = np.zeros(len(frames), np.int64)
     _line_returns(scan.points, scan.heading, slot.astype(np.int64),
                   np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),
                   cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
-                  returned, floor, off_plane, nearest)
+                  nearest, floor, off_plane)
     foreign = off_plane > OFF_PLANE_SHARE * np.bincount(slot, minlength=len(frames))
-    return LineReturns(frames, first, slot, returned, floor, nearest, foreign)
+    return LineReturns(frames, first, slot, np.isfinite(nearest), floor, nearest, foreign)
 
 
 def unlit_floor(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None,

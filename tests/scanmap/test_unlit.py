@@ -312,15 +312,15 @@ def test_the_compiled_image_lines_are_those_of_project_head_points_with_distorti
         camera=replace(MODEL.camera, distortion=(0.12, -0.2, 0.002, -0.001, 0.05)))
     scan = first_corridor_scan()
     frames, slot = np.unique(scan.frame_index, return_inverse=True)
-    returned = np.zeros((len(frames), model.camera.width), bool)
+    nearest = np.full((len(frames), model.camera.width), np.inf)
     cam = model.camera
     _line_returns(scan.points, scan.heading, slot.astype(np.int64),
                   np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),
                   cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
-                  returned, np.zeros_like(returned), np.zeros(len(frames), np.int64),
-                  np.full(returned.shape, np.inf))
+                  nearest, np.zeros(nearest.shape, bool), np.zeros(len(frames), np.int64))
+    returned = np.isfinite(nearest)
     expected = np.zeros_like(returned)
     for point, heading, row in zip(scan.points, scan.heading, slot, strict=True):
         head = np.linalg.inv(model.head_pose(heading)) @ np.append(point, 1.0)
