@@ -52,6 +52,11 @@ Insertion is one scan at a time, in three passes:
    camera's rays showed (floor they passed just above unlit, space below the floor by
    a hole), and the laser's, reaching the floor at a third of the camera's slope, left
    drop-offs reaching up to 2.9 cells past their edge for a scan (ramp rooms 1-24).
+   Where the emitter lies over or under the camera centre (the reference scanner's), a
+   laser's ray crosses the camera ray's cells at the same points of its way: both are
+   traced in one walk (`_joint`), the laser's clearing ending where the camera ray's
+   bundle does (on a 20,000-point corridor scan the laser's rays took 1.05 ms of the
+   insertion's 2.9 traced alone, 0.35-0.4 ms so).
    Rays from one origin (one camera frame) converge there and share their last cells:
    the cell remembers the heights the current origin's rays marked (VKEY, VMASK), and a
    ray stops after `bundle_run` cells in a row that a sibling ray already updated with
@@ -115,6 +120,7 @@ POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO
 IP_SHIFT, IP_LEVELS, IP_MAXMISS, IP_SCAN, IP_KEY, IP_RUN, IP_STATIC, IP_VISITS = range(8)
 
 _U32_MAX = np.uint32(0xFFFFFFFF)
+JOINT_XY = 1e-6  # m: an emitter this near the camera's x, y shares its rays' walk
 _MEAN_WINDOW = 1024.0  # hit-centroid running mean forgets beyond this many hits
 
 
@@ -753,11 +759,12 @@ def _insert_scan(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev
         cells[off, SCAN] = scan64
         n_hits += 1
     key = np.uint64(ip[IP_KEY])
-    n_cleared, key = _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag,
-                                 nlev, cells, fp, ip, key, path, False)  # pass 2
+    n_cleared, key = _trace_rays(points, origins, cls, lasers, laser_cls, tile_index, lev_f,
+                                 lev_n, lev_flag, nlev, cells, fp, ip, key, path,
+                                 False)  # pass 2
     if lasers.shape[0] == points.shape[0]:
-        cleared, key = _trace_rays(points, lasers, laser_cls, tile_index, lev_f, lev_n, lev_flag,
-                                   nlev, cells, fp, ip, key, path, True)
+        cleared, key = _trace_rays(points, origins, cls, lasers, laser_cls, tile_index, lev_f,
+                                   lev_n, lev_flag, nlev, cells, fp, ip, key, path, True)
         n_cleared += cleared
     for i in range(n_fresh):  # pass 3: merge new levels unless their gap was seen free
         off = fresh[i]
@@ -766,17 +773,30 @@ def _insert_scan(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev
     return n_hits, n_cleared, np.int64(key)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _joint(origins, cls, lasers, laser_cls, i) -> bool:
+    """Whether the camera's and the laser's rays to point i are both traced and cross the
+    same cells: the emitter lies over or under the camera centre (within JOINT_XY), as on
+    the reference scanner, so one walk serves both."""
+    return lasers.shape[0] == origins.shape[0] and cls[i] == POINT_OK \
+        and laser_cls[i] == POINT_OK and abs(lasers[i, 0] - origins[i, 0]) <= JOINT_XY \
+        and abs(lasers[i, 1] - origins[i, 1]) <= JOINT_XY
+
+
 @njit(cache=True, nogil=True, _nrt=False)
-def _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, cells, fp, ip,
-                key, path, from_laser) -> tuple[int, np.uint64]:
-    """Pass 2 of `_insert_scan`: the rays from `origins` to the points, each traced from
-    the hit back to its origin (`from_laser`: the laser's, see the module); returns the
-    levels cleared and the last bundle key."""
+def _trace_rays(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev_n, lev_flag,
+                nlev, cells, fp, ip, key, path, from_laser) -> tuple[int, np.uint64]:
+    """Pass 2 of `_insert_scan`: the rays to the points, each traced from the hit back to
+    its origin; returns the levels cleared and the last bundle key. Without `from_laser`
+    the camera's, from `origins`, and in the same walk the laser's where they cross the
+    same cells (`_joint`: its emitter's x, y are the camera's, so the walk's cells and
+    its parameter t are the laser ray's too; it goes as far as the camera's ray, whose
+    bundle ends both). With `from_laser`, the laser's other rays, from `lasers` (see the
+    module)."""
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
-    shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
-    bundle_run, static_scans = ip[IP_RUN], ip[IP_STATIC]
-    see_through = fp[FP_SEE_THROUGH]
+    shift = ip[IP_SHIFT]
+    bundle_run = ip[IP_RUN]
     # multiplied by, not divided: a ray's set-up held twelve divisions (about 0.25 ms of a
     # 20,000-point scan's 3.6). Where a point lies on a cell's edge its cell may round
     # otherwise than pass 1's; the ray's cells are then checked against the tiles as
@@ -784,14 +804,19 @@ def _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, 
     per_res, per_dz = 1.0 / res, 1.0 / mdz
     count_visits = ip[IP_VISITS] != 0
     mask = (1 << shift) - 1
-    scan = np.uint32(ip[IP_SCAN])
     scan64 = np.uint64(ip[IP_SCAN])
     n_cleared = 0
     group = (-1, -1, -1)
     for i in range(points.shape[0]):
-        if cls[i] != POINT_OK:
-            continue
-        ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+        joint = _joint(origins, cls, lasers, laser_cls, i)
+        if from_laser:
+            if laser_cls[i] != POINT_OK or joint:
+                continue
+            ox, oy, oz = lasers[i, 0], lasers[i, 1], lasers[i, 2]
+        else:
+            if cls[i] != POINT_OK:
+                continue
+            ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
         origin_cell = (int(np.floor(ox * per_res)), int(np.floor(oy * per_res)),
                        int(np.floor(oz * per_res)))
         if origin_cell != group:
@@ -801,6 +826,10 @@ def _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, 
         dxr, dyr, dzr = ox - points[i, 0], oy - points[i, 1], oz - pz
         length = np.sqrt(dxr * dxr + dyr * dyr + dzr * dzr)
         t_margin = fp[FP_MARGIN] / length if length > 0.0 else 2.0
+        dz_laser = lasers[i, 2] - pz if joint else 0.0
+        length_laser = np.sqrt(dxr * dxr + dyr * dyr + dz_laser * dz_laser)
+        t_margin_laser = fp[FP_MARGIN] / length_laser if joint and length_laser > 0.0 \
+            else 2.0
         path[4], path[5] = dxr, dyr
         ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(
             (points[i, 0] - x0) * per_res, (points[i, 1] - y0) * per_res,
@@ -836,26 +865,45 @@ def _trace_rays(points, origins, cls, tile_index, lev_f, lev_n, lev_flag, nlev, 
                     if count_visits and cells[off, SCAN] != scan64:
                         cells[off, VISITS] += np.uint64(1)
                     cells[off, SCAN] = scan64
-                    if nlev[off] > 0 and t_out > t_margin:
-                        t_clear = max(t_in, t_margin)
-                        za, zb = pz + dzr * t_clear, pz + dzr * t_out
-                        za, zb = min(za, zb), max(za, zb)
-                        clear = height_mask(za, zb, z_min, mdz)
-                        if _touches_any(lev_f, nlev[off], off * levels, za, zb, clear, z_min,
-                                        mdz):
-                            cx, cy = x0 + (ix + 0.5) * res, y0 + (iy + 0.5) * res
-                            path[0] = points[i, 0] + dxr * t_clear - cx
-                            path[1] = points[i, 1] + dyr * t_clear - cy
-                            path[2] = points[i, 0] + dxr * t_out - cx
-                            path[3] = points[i, 1] + dyr * t_out - cy
-                            n_cleared += _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index,
-                                                    off, ix, iy, za, zb, clear, path, fp,
-                                                    shift, levels, max_miss, static_scans,
-                                                    scan, t_in * length >= see_through,
-                                                    from_laser)
+                    n_cleared += _clear_in_cell(points, i, lev_f, lev_n, lev_flag, nlev,
+                                                tile_index, off, ix, iy, t_in, t_out, t_margin,
+                                                dzr, length, path, fp, ip, from_laser)
+                if joint:
+                    n_cleared += _clear_in_cell(points, i, lev_f, lev_n, lev_flag, nlev,
+                                                tile_index, off, ix, iy, t_in, t_out,
+                                                t_margin_laser, dz_laser, length_laser, path,
+                                                fp, ip, True)
             b_in = b_out
             ix, iy, t_in, tmx, tmy = _dda_step(ix, iy, sx, sy, tmx, tmy, tdx, tdy)
     return n_cleared, key
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _clear_in_cell(points, i, lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, t_in,
+                   t_out, t_margin, dzr, length, path, fp, ip, from_laser) -> int:
+    """The levels of cell `off` that the ray from point i, rising dzr over its length, passed
+    between t_in and t_out (past its last `clear_margin`, t_margin), cleared by
+    `_pass_cell`; path[4:6] holds the ray's x-y direction. Returns the levels removed."""
+    if nlev[off] == 0 or t_out <= t_margin:
+        return 0
+    res, z_min, mdz = fp[FP_RES], fp[FP_ZMIN], fp[FP_MASK_DZ]
+    levels = ip[IP_LEVELS]
+    pz = points[i, 2]
+    t_clear = max(t_in, t_margin)
+    za, zb = pz + dzr * t_clear, pz + dzr * t_out
+    za, zb = min(za, zb), max(za, zb)
+    clear = height_mask(za, zb, z_min, mdz)
+    if not _touches_any(lev_f, nlev[off], off * levels, za, zb, clear, z_min, mdz):
+        return 0
+    cx, cy = fp[FP_X0] + (ix + 0.5) * res, fp[FP_Y0] + (iy + 0.5) * res
+    path[0] = points[i, 0] + path[4] * t_clear - cx
+    path[1] = points[i, 1] + path[5] * t_clear - cy
+    path[2] = points[i, 0] + path[4] * t_out - cx
+    path[3] = points[i, 1] + path[5] * t_out - cy
+    return _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, clear,
+                      path, fp, ip[IP_SHIFT], levels, ip[IP_MAXMISS], ip[IP_STATIC],
+                      np.uint32(ip[IP_SCAN]), t_in * length >= fp[FP_SEE_THROUGH],
+                      from_laser)
 
 
 @njit(cache=True, nogil=True)

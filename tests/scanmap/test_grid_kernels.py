@@ -9,7 +9,11 @@ from hypothesis import strategies as st
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.grid.rays import laser_origins, scan_rays
 from scanmap_driver.errors import MapError
+from scanmap_driver.scanner_model import reference_scanner
+from scanmap_driver.sim.ideal import ideal_scans
+from scanmap_driver.sim.scene import builtin_scene
 
 CONFIG = GridConfig(extent=20.0, bundle_run=0)
 
@@ -501,6 +505,28 @@ def test_a_lasers_ray_leaves_the_heights_it_crossed_unseen():
     camera = int(gk.height_mask(0.49, 0.5, CONFIG.z_min, CONFIG.mask_dz))
     laser = int(gk.height_mask(0.244, 0.25, CONFIG.z_min, CONFIG.mask_dz))
     assert seen & camera == camera and seen & laser == 0
+
+
+def test_one_walk_for_the_camera_and_an_emitter_under_it_is_the_two_walks():
+    """The laser's rays from an emitter under the camera (the reference scanner's) are
+    traced in the camera's rays' walk: cells and t are the same. Traced alone instead (an
+    emitter just off the camera's x-y), every ray to its end: the same grid, level for
+    level, over scans of people walking through a room."""
+    model = reference_scanner()
+    grids = [HeightGrid(CONFIG), HeightGrid(CONFIG)]
+    for ideal in ideal_scans(builtin_scene("people"), model, scans=5):
+        points, origins = scan_rays(ideal.scan, model, ideal.frame_poses)
+        lasers = laser_origins(ideal.scan, model, ideal.frame_poses)
+        assert np.array_equal(lasers[:, :2], origins[:, :2])  # the joint walk's case
+        for grid, off in zip(grids, (0.0, 2 * gk.JOINT_XY), strict=True):
+            grid.insert(points, origins, float(ideal.scan.time.max()),
+                        lasers=lasers + [off, 0.0, 0.0])
+    joint, apart = (grid.layers() for grid in grids)
+    assert np.array_equal(joint.nlev, apart.nlev) and joint.nlev.sum() > 1000
+    used = np.arange(CONFIG.levels) < joint.nlev[..., None]
+    assert np.array_equal(joint.levels[used], apart.levels[used])
+    assert np.array_equal(joint.counts[used], apart.counts[used])
+    assert np.array_equal(joint.seen, apart.seen)
 
 
 def test_misses_per_scan_are_capped():
