@@ -14,6 +14,8 @@ Rows:
   field is: the query alone is timed), which also gives the exact distance it is scored
   against; nearest(): one call from Python while another thread inserts scans (median
   and p99).
+* window read: `HeightGrid.layers` of an 8 m window after 10 and after 10,000 scans of a
+  robot driving (what the grid keeps per scan must not slow each scan's read).
 * accuracy: obstacle-cell F1 in the robot band (recall over the cells true points in the
   band fell in), floor precision/recall (recall over the cells true floor points fell
   in), FREE cells on true obstacles, nearest-obstacle distance error (p95) at random
@@ -463,6 +465,33 @@ def query_rows(grid: HeightGrid, scans, quick: bool) -> list[dict]:
     return rows
 
 
+def window_read_rows(quick: bool) -> list[dict]:
+    """`HeightGrid.layers` of an 8 m window round the robot after a long run: a robot
+    driving 0.4 m a scan up and down 40 m of corridor (two hits a scan, its path given as
+    where it stood), read after 10 scans and after many. What a grid keeps per scan (its
+    time, where the robot stood) must not make each scan's read slower as the run goes
+    on (`scanmap.grid.growing`)."""
+    grid = HeightGrid(GridConfig(extent=100.0))
+    hits = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.2]])
+    rows, done = [], 0
+    for scans in (10, 2_000 if quick else 10_000):
+        while done < scans:
+            x = 0.4 * (done % 100)
+            path = np.column_stack([np.linspace(x, x + 0.4, 17), np.zeros(17)])
+            grid.insert(hits + [x, 0.0, 0.0], np.array([x, 0.0, 1.0]), float(done),
+                        stood=path)
+            done += 1
+        x = 0.4 * (done % 100)
+        window = (x - 4.0, -4.0, x + 4.0, 4.0)
+        rows.append({"stage": "grid window read", "method": "HeightGrid.layers, 8 m window",
+                     "settings": f"after {scans} scans of a robot driving 0.4 m a scan "
+                                 "(its path kept); CPU time, one core",
+                     "median_s": median_time(lambda w=window: grid.layers(w), repeats=20,
+                                             clock=time.thread_time),
+                     "error": None, "peers": {}})
+    return rows
+
+
 def run(quick: bool = False) -> list[dict]:
     """Every row of this module (see its docstring)."""
     scene, scans = office_rays(quick)
@@ -480,6 +509,7 @@ def run(quick: bool = False) -> list[dict]:
     rows += insertion_rows(scans, config, quick, octomap)
     rows += field_rows(grid, quick)
     rows += query_rows(grid, scans, quick)
+    rows += window_read_rows(quick)
     return rows
 
 

@@ -28,6 +28,7 @@ from scanmap.grid import _kernels as gk
 from scanmap.grid import _merge_kernels as mk
 from scanmap.grid import _swept_kernels as sk
 from scanmap.grid.config import GridConfig
+from scanmap.grid.growing import GrowingArray
 from scanmap.grid.packed import PackedGrid, pack_pools
 from scanmap_driver.errors import MapError
 from scanmap_driver.files import exact_array
@@ -144,8 +145,8 @@ class HeightGrid:
         self._lock = threading.Lock()
         self.stamp = math.nan  # time of the newest insertion
         self._window_origin: tuple[float, float] | None = None
-        self._scan_times = [math.nan]  # time of each scan id; id 0 = never
-        self._stood: list[tuple[float, float]] = []  # where the robot stood, per scan
+        self._scan_times = GrowingArray(np.array([math.nan]))  # of each scan id; 0 = never
+        self._stood = GrowingArray(np.zeros((0, 2)))  # x, y where the robot stood
         cells, levels = c.tile_cells ** 2, c.tile_cells ** 2 * c.levels
         self._lev_f = np.zeros((0, levels, gk.N_FLOAT_FIELDS), np.float32)
         self._lev_n = np.zeros((0, levels, gk.N_INT_FIELDS), np.uint32)
@@ -359,11 +360,11 @@ class HeightGrid:
                                                 self._fp, ip)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
             if stood is not None:
-                self._stood.extend(map(tuple, _path(stood, 0.5 * c.resolution)))
+                self._stood.extend(_path(stood, 0.5 * c.resolution))
             else:
                 box = gk.usable_box(origins, cls)
                 if not np.isnan(box[0]):
-                    self._stood.append(tuple(0.5 * (box[:2] + box[2:])))
+                    self._stood.append(0.5 * (box[:2] + box[2:]))
         counts = np.bincount(cls, minlength=5)
         return InsertStats(inserted=hits, nonfinite=int(counts[gk.POINT_NONFINITE]),
                            outside_window=int(counts[gk.POINT_OUTSIDE_WINDOW]),
@@ -379,8 +380,8 @@ class HeightGrid:
                                 self._nlev[used], self._cells[used],
                                 gk.VISITS if self.count_visits else None)
             return PackedGrid(self.config, *arrays, bounds=self.bounds(),
-                              scan_times=tuple(self._scan_times),
-                              stood=np.array(self._stood, np.float64).reshape(-1, 2),
+                              scan_times=tuple(self._scan_times.array.tolist()),
+                              stood=self._stood.array.copy(),
                               stamp=self.stamp)
 
     def merge(self, submap: HeightGrid | PackedGrid, motion: np.ndarray | None = None) -> int:
@@ -427,11 +428,11 @@ class HeightGrid:
             removed = mk.merge_submap(*src, submap.lev_n, self._tile_index,
                                       *self._flat_pools(), planar, box, src_box, self._fp,
                                       self._shift, c.levels, c.static_scans, offset)
-            self._scan_times.extend(submap.scan_times[1:])
+            self._scan_times.extend(np.array(submap.scan_times[1:], np.float64))
             if not math.isnan(submap.stamp):
                 self.stamp = submap.stamp if math.isnan(self.stamp) \
                     else max(self.stamp, submap.stamp)
-            self._stood.extend(map(tuple, submap.stood @ turn + planar[2:]))
+            self._stood.extend(submap.stood @ turn + planar[2:])
         return int(removed)
 
     # -- reading -----------------------------------------------------------------------
@@ -477,10 +478,11 @@ class HeightGrid:
             lev_f, lev_n, _, nlev, cells = self._flat_pools()
             gk.extract_window(self._tile_index, lev_f, lev_n, nlev, cells, self._shift, k,
                               ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan, out_unlit)
-            out_updated = np.asarray(self._scan_times)[out_scan]
-            stood = np.array(self._stood, np.float64).reshape(-1, 2)
+            out_updated = self._scan_times.array[out_scan]
+            stood = self._stood.array
         origin = (round(c.corner + ix0 * c.resolution, 9), round(c.corner + iy0 * c.resolution, 9))
-        inside = ((stood >= (xmin, ymin)) & (stood < (xmax, ymax))).all(axis=1)
+        x, y = stood[:, 0], stood[:, 1]  # by columns: a tenth of the time of by rows
+        inside = (x >= xmin) & (x < xmax) & (y >= ymin) & (y < ymax)
         return CellLayers(origin=origin,
                           resolution=c.resolution, z_min=c.z_min, mask_dz=c.mask_dz,
                           levels=out_f, counts=out_n, nlev=out_nlev, seen=out_seen,
@@ -492,9 +494,9 @@ class HeightGrid:
         with self._lock:
             used = np.flatnonzero(self._coords[:, 0] >= 0)
             out = {"tile_coords": self._coords[used].copy(),
-                   "scan_times": np.array(self._scan_times, np.float64),
+                   "scan_times": self._scan_times.array.copy(),
                    "stamp": np.array(self.stamp, np.float64),
-                   "stood": np.array(self._stood, np.float64).reshape(-1, 2)}
+                   "stood": self._stood.array.copy()}
             for name, pool in zip(POOL_NAMES, self._pools(), strict=True):
                 out[name] = pool[used]
             out["cells"] = out["cells"][..., :SAVED_CELL_FIELDS].copy()  # not the scratch
@@ -514,8 +516,8 @@ class HeightGrid:
             out._tile_index[tuple(out._coords.T)] = np.arange(len(used), dtype=np.int32)
             out.stamp = self.stamp
             out._window_origin = self._window_origin
-            out._scan_times = list(self._scan_times)
-            out._stood = list(self._stood)
+            out._scan_times = self._scan_times.copy()
+            out._stood = self._stood.copy()
             out._ray_key = self._ray_key
         return out
 
@@ -557,14 +559,14 @@ class HeightGrid:
         for name, pool in zip(POOL_NAMES, grid._pools(), strict=True):
             saved = np.asarray(state[name])
             pool[:n, ..., :saved.shape[-1]] = saved
-        grid._scan_times = times.tolist()
+        grid._scan_times = GrowingArray(times)
         grid.stamp = float(state["stamp"])
         if "stood" in state:  # absent from maps written before 2026-12-03: none known
             stood = exact_array(np.asarray(state["stood"]), f"{source}: stood", np.float64,
                                 MapError)
             if stood.ndim != 2 or stood.shape[1] != 2:
                 raise MapError(f"{source}: stood must be (M, 2) x, y, got {stood.shape}")
-            grid._stood = list(map(tuple, stood.tolist()))
+            grid._stood = GrowingArray(stood)
         if "window_origin" in state:
             grid._window_origin = tuple(map(float, state["window_origin"]))
         return grid
