@@ -147,6 +147,7 @@ class HeightGrid:
         self._window_origin: tuple[float, float] | None = None
         self._scan_times = GrowingArray(np.array([math.nan]))  # of each scan id; 0 = never
         self._stood = GrowingArray(np.zeros((0, 2)))  # x, y where the robot stood
+        self._stood_bins: set[tuple[int, int]] = set()  # `_add_stood`'s bins of them
         cells, levels = c.tile_cells ** 2, c.tile_cells ** 2 * c.levels
         self._lev_f = np.zeros((0, levels, gk.N_FLOAT_FIELDS), np.float32)
         self._lev_n = np.zeros((0, levels, gk.N_INT_FIELDS), np.uint32)
@@ -360,16 +361,30 @@ class HeightGrid:
                                                 self._fp, ip)
             self.stamp = float(stamp) if math.isnan(self.stamp) else max(self.stamp, stamp)
             if stood is not None:
-                self._stood.extend(_path(stood, 0.5 * c.resolution))
+                self._add_stood(_path(stood, 0.5 * c.resolution))
             else:
                 box = gk.usable_box(origins, cls)
                 if not np.isnan(box[0]):
-                    self._stood.append(0.5 * (box[:2] + box[2:]))
+                    self._add_stood(0.5 * (box[None, :2] + box[None, 2:]))
         counts = np.bincount(cls, minlength=5)
         return InsertStats(inserted=hits, nonfinite=int(counts[gk.POINT_NONFINITE]),
                            outside_window=int(counts[gk.POINT_OUTSIDE_WINDOW]),
                            too_far=int(counts[gk.POINT_TOO_FAR]), cleared=cleared,
                            new_tiles=new_tiles)
+
+    def _add_stood(self, places: np.ndarray) -> None:
+        """Keep the places (M, 2) the robot stood but those in a quarter-cell bin already
+        holding one: a robot that passes a place again (a patrol) adds nothing there, so
+        the places, and the cost of its footprint in each segmentation, grow with the
+        area driven, not with the run (a footprint moves by at most a third of a cell)."""
+        bin_side = 0.25 * self.config.resolution
+        kept = []
+        for i, key in enumerate(map(tuple, np.floor(places / bin_side).astype(np.int64)
+                                    .tolist())):
+            if key not in self._stood_bins:
+                self._stood_bins.add(key)
+                kept.append(i)
+        self._stood.extend(places[kept])
 
     def packed(self) -> PackedGrid:
         """What `merge` reads of this grid, packed (`scanmap.grid.packed`): a submap
@@ -432,7 +447,7 @@ class HeightGrid:
             if not math.isnan(submap.stamp):
                 self.stamp = submap.stamp if math.isnan(self.stamp) \
                     else max(self.stamp, submap.stamp)
-            self._stood.extend(submap.stood @ turn + planar[2:])
+            self._add_stood(submap.stood @ turn + planar[2:])
         return int(removed)
 
     # -- reading -----------------------------------------------------------------------
@@ -517,7 +532,7 @@ class HeightGrid:
             out.stamp = self.stamp
             out._window_origin = self._window_origin
             out._scan_times = self._scan_times.copy()
-            out._stood = self._stood.copy()
+            out._stood, out._stood_bins = self._stood.copy(), set(self._stood_bins)
             out._ray_key = self._ray_key
         return out
 
@@ -566,7 +581,7 @@ class HeightGrid:
                                 MapError)
             if stood.ndim != 2 or stood.shape[1] != 2:
                 raise MapError(f"{source}: stood must be (M, 2) x, y, got {stood.shape}")
-            grid._stood = GrowingArray(stood)
+            grid._add_stood(stood)
         if "window_origin" in state:
             grid._window_origin = tuple(map(float, state["window_origin"]))
         return grid

@@ -1,6 +1,9 @@
-"""`GrowingArray` against numpy's concatenation, and a grid's window read in a long run."""
+"""What a grid keeps per scan over a long run: `GrowingArray` against numpy's
+concatenation, the places stood read back in a window, and a patrol's places."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -9,6 +12,7 @@ from hypothesis import strategies as st
 
 from scanmap.grid.growing import GrowingArray
 from scanmap.grid.height_grid import GridConfig, HeightGrid
+from scanmap.navigation.floor import _footprint_cells
 
 chunks = st.lists(st.integers(0, 40), max_size=30)
 
@@ -58,6 +62,31 @@ def test_a_long_runs_window_holds_only_the_places_stood_inside_it():
     layers = grid.layers((2.0, -2.0, 6.0, 2.0))
     every = np.unique(np.concatenate(places), axis=0)
     inside = every[(every[:, 0] >= 2.0) & (every[:, 0] < 6.0)]
-    np.testing.assert_array_equal(np.unique(layers.stood, axis=0), inside)
+    np.testing.assert_array_equal(np.unique(layers.stood.round(9), axis=0),
+                                  np.unique(inside.round(9), axis=0))  # a path's end is the
+    # next one's start, but for the rounding of 0.4 * k
     crossing = [k for k in range(300) if 0.4 * (k % 50) < 6.0 and 0.4 * (k % 50) + 1.0 >= 2.0]
     assert np.nanmax(layers.updated) == 10.0 + max(crossing)  # the last ray through it
+
+
+def test_a_patrol_adds_places_stood_with_the_area_not_with_the_passes():
+    """A robot driving the same 4 m fifty times, its path a few mm off each time, keeps
+    a place per quarter-cell bin its paths crossed, not each pass's places, and its
+    footprint covers the cells the footprints of every place passed cover but for a few
+    on its rim."""
+    rng = np.random.default_rng(7)
+    grids = {passes: HeightGrid(GridConfig(extent=50.0)) for passes in (1, 50)}
+    every = []
+    for passes, grid in grids.items():
+        for k in range(passes):
+            path = np.column_stack([np.linspace(0.0, 4.0, 161), np.zeros(161)])
+            path += rng.normal(0.0, 0.003, path.shape) if k else 0.0
+            grid.insert(np.array([[5.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]), float(k),
+                        stood=path)
+            every.append(path) if passes == 50 else None
+    one, many = (grid.layers((-1.0, -1.0, 5.0, 1.0)) for grid in grids.values())
+    passed_places = sum(len(path) for path in every)  # 8,050
+    assert len(one.stood) > 90 and len(many.stood) <= 0.1 * passed_places
+    kept = _footprint_cells(many, 0.25)
+    passed = _footprint_cells(replace(many, stood=np.concatenate(every)), 0.25)
+    assert (kept <= passed).all() and (passed & ~kept).sum() <= 0.03 * passed.sum()
