@@ -826,10 +826,12 @@ def _trace_rays(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev_
         dxr, dyr, dzr = ox - points[i, 0], oy - points[i, 1], oz - pz
         length = np.sqrt(dxr * dxr + dyr * dyr + dzr * dzr)
         t_margin = fp[FP_MARGIN] / length if length > 0.0 else 2.0
-        dz_laser = lasers[i, 2] - pz if joint else 0.0
-        length_laser = np.sqrt(dxr * dxr + dyr * dyr + dz_laser * dz_laser)
-        t_margin_laser = fp[FP_MARGIN] / length_laser if joint and length_laser > 0.0 \
-            else 2.0
+        dz_laser, length_laser, t_margin_laser = 0.0, 0.0, 2.0  # the laser's ray, if joint
+        if joint:
+            dz_laser = lasers[i, 2] - pz
+            length_laser = np.sqrt(dxr * dxr + dyr * dyr + dz_laser * dz_laser)
+            if length_laser > 0.0:
+                t_margin_laser = fp[FP_MARGIN] / length_laser
         path[4], path[5] = dxr, dyr
         ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(
             (points[i, 0] - x0) * per_res, (points[i, 1] - y0) * per_res,
