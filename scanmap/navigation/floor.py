@@ -375,7 +375,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     rule that decides a cell's state reaches at most `_reach` cells from a hit, a cell
     rays saw or a place the robot stood): beyond it each cell is UNKNOWN, off the floor,
     its floor height that of the nearest floor within `fill_radius` (carried there as in
-    the part segmented, `_carried_beyond`), else of the largest plane (else
+    the part segmented, `_carry`), else of the largest plane (else
     `fallback_floor`, else NaN), as segmenting the whole window gives them (to the
     rounding of the cell centres, computed from another origin). A window round the
     robot often holds much that no ray reached (behind a corridor's walls: two thirds of
@@ -392,7 +392,12 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     area = (rows.stop - rows.start) * (cols.stop - cols.start)
     if not area or area > 0.8 * ny * nx:  # nothing seen, or little to leave out
         return _segment(layers, robot, params, fallback_floor)[0]
-    inner, carried = _segment(_cropped(layers, rows, cols), robot, params, fallback_floor)
+    # the border round the box that the floor's height is carried into
+    pad = max(math.floor(params.fill_radius / layers.resolution) - reach, 0)
+    margins = (min(pad, rows.start), min(pad, ny - rows.stop), min(pad, cols.start),
+               min(pad, nx - cols.stop))
+    inner, beyond = _segment(_cropped(layers, rows, cols), robot, params, fallback_floor,
+                             margins)
     xs, ys = layers.cell_centers()
     if inner.planes:
         floor_height = inner.planes[0].height_at(xs[None, :], ys[:, None]).astype(np.float32)
@@ -409,8 +414,11 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                         (points, inner.points), (band_logodds, inner.band_logodds),
                         (is_floor, inner.is_floor), (slope, inner.slope)):
         whole[rows, cols] = part
-    _carried_beyond(floor_height, carried, rows, cols, params.fill_radius, layers.resolution,
-                    reach)
+    if beyond is not None:  # the height of the floor seen in the box, carried round it
+        outer = floor_height[rows.start - margins[0]:rows.stop + margins[1],
+                             cols.start - margins[2]:cols.stop + margins[3]]
+        carried = ~np.isnan(beyond)
+        outer[carried] = beyond[carried]  # a view: in place
     return Segmentation(origin=layers.origin, resolution=layers.resolution, robot=robot,
                         floor_height=floor_height, is_floor=is_floor, planes=inner.planes,
                         state=state, points=points, band_logodds=band_logodds,
@@ -422,39 +430,34 @@ def _reach(params: FloorConfig, resolution: float) -> int:
     were observed: a drop-off spread, a gap bridged, an overhang spread out and back (to
     an observed cell: half its reach; farther out it covers cells UNKNOWN anyway), and a
     few cells more for the 3 x 3 and 5 x 5 neighbourhoods on the way. The floor's height
-    carried farther is `_carried_beyond`'s."""
+    carried farther is `_carry`'s."""
     farthest = max(params.drop_reach, params.max_gap, params.max_hole,
                    0.5 * params.overhang_reach)
     return math.ceil(farthest / resolution) + 3
 
 
-def _carried_beyond(floor_height: np.ndarray, carried: np.ndarray, rows: slice, cols: slice,
-                    fill_radius: float, resolution: float, reach: int) -> None:
-    """Give the cells of `floor_height` round the box (rows, cols) segmented the height of
-    the nearest cell of `carried` (floor seen in the box, at least `reach` cells inside
-    its edge) within `fill_radius` (m), as `_segment` carries it inside the box."""
-    if not carried.any():
-        return
-    ny, nx = floor_height.shape
-    pad = max(math.floor(fill_radius / resolution) - reach, 0)
-    outer = (slice(max(rows.start - pad, 0), min(rows.stop + pad, ny)),
-             slice(max(cols.start - pad, 0), min(cols.stop + pad, nx)))
-    inside = (slice(rows.start - outer[0].start, rows.stop - outer[0].start),
-              slice(cols.start - outer[1].start, cols.stop - outer[1].start))
-    sources = np.zeros((outer[0].stop - outer[0].start, outer[1].stop - outer[1].start), bool)
-    sources[inside] = carried
-    ring = np.ones(sources.shape, bool)
-    ring[inside] = False
-    _carry(floor_height[outer], sources, ring, fill_radius, resolution)  # a view: in place
-
-
 def _carry(heights: np.ndarray, carried: np.ndarray, into: np.ndarray, fill_radius: float,
-           resolution: float) -> None:
+           resolution: float, margins: tuple[int, int, int, int]) -> np.ndarray:
     """Give the cells `into` within `fill_radius` (m) of a cell of `carried` that cell's
-    height (the nearest's), in place."""
-    distance, nearest = distance_transform(carried)
-    fill = into & (distance * resolution <= fill_radius)
-    heights[fill] = heights.reshape(-1)[nearest[fill]]
+    height (the nearest's), in place. Returns the heights so carried into a border of
+    `margins` (top, bottom, left, right) cells round the array (NaN elsewhere and inside
+    it): a box segmented alone gives the cells round it the height of its floor as
+    segmenting the whole window would, from the same distance transform."""
+    top, bottom, left, right = margins
+    ny, nx = carried.shape
+    inside = (slice(top, top + ny), slice(left, left + nx))
+    sources = np.zeros((ny + top + bottom, nx + left + right), bool)
+    sources[inside] = carried
+    distance, nearest = distance_transform(sources)
+    reached = distance * resolution <= fill_radius
+    padded = np.full(sources.shape, np.nan, np.float32)
+    padded[inside] = heights
+    fill = into & reached[inside]
+    heights[fill] = padded.reshape(-1)[nearest[inside][fill]]
+    reached[inside] = False
+    beyond = np.full(sources.shape, np.nan, np.float32)
+    beyond[reached] = padded.reshape(-1)[nearest[reached]]
+    return beyond
 
 
 def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[slice, slice]:
@@ -490,9 +493,11 @@ def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
 
 
 def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
-             fallback_floor: float | None) -> tuple[Segmentation, np.ndarray]:
-    """`segment` on the whole of `layers`, and the floor whose heights it carried (up to
-    `fill_radius` into cells without observed floor)."""
+             fallback_floor: float | None, margins: tuple[int, int, int, int] = (0, 0, 0, 0)
+             ) -> tuple[Segmentation, np.ndarray | None]:
+    """`segment` on the whole of `layers`, and the floor heights it carried (up to
+    `fill_radius` from the floor seen) into a border of `margins` cells round it (`_carry`;
+    None where no floor was seen)."""
     rng = np.random.default_rng(params.seed)
     ny, nx = layers.shape
     res = layers.resolution
@@ -542,8 +547,9 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     edges = nk.step_edges(layers.levels, layers.nlev, cand, is_floor, robot.step_height,
                           params.clearance, params.plane_tolerance)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
+    beyond = None
     if carried.any():
-        _carry(floor_height, carried, ~is_floor, params.fill_radius, res)
+        beyond = _carry(floor_height, carried, ~is_floor, params.fill_radius, res, margins)
     if planes:  # farther out, the largest floor plane
         fy, fx = _cells(np.isnan(floor_height))
         floor_height[fy, fx] = planes[0].height_at(xs[fx], ys[fy])
@@ -722,7 +728,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                                   & ~covered) | edges,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
-                        slope=np.where(is_floor, slope, np.nan).astype(np.float32)), carried
+                        slope=np.where(is_floor, slope, np.nan).astype(np.float32)), beyond
 
 
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:
