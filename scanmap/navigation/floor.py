@@ -903,12 +903,12 @@ def _floor_samples(layers: CellLayers, is_floor: np.ndarray) -> np.ndarray:
 def _below_all_floor(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,
                      tolerance: float) -> np.ndarray:
     """Cells with hits whose lowest level's `bottom` lies more than `tolerance` below the
-    lowest bottom of the floor cells in their 3 x 3 square (of `_dips`, those below every
-    floor beside them: not the face of a raised ramp, whose foot is the floor beside
-    it)."""
+    lowest bottom of the floor cells in their 5 x 5 square (of `_dips`, those below every
+    floor near them: not the face of a raised ramp, whose foot is the floor beside it,
+    two cells off where a turned ramp's face crosses two)."""
     with np.errstate(invalid="ignore"):
         floor_bottom = np.where(is_floor & (nlev > 0), bottom, np.inf)
-        return (nlev > 0) & (bottom < morphology.min_filter(floor_bottom, 3) - tolerance)
+        return (nlev > 0) & (bottom < morphology.min_filter(floor_bottom, 5) - tolerance)
 
 
 def _dips(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,
