@@ -1,13 +1,15 @@
-"""Binary morphology and connected components on cell masks, by OpenCV and Numba.
+"""Binary morphology and connected components on cell masks, in Numba on the calling thread.
 
 The segmentation needs a few of scipy.ndimage's operations on small boolean grids:
 dilation by the 3 x 3 square (also geodesic: grown only inside a mask, a step at a time,
-and only into cells within a range of the seed's),
-square minimum and maximum filters, and 8-connected components with their bounding
-boxes. OpenCV's versions of these, and a breadth-first search for the dilation kept to
-ranges (one pass that carries each seed's bounds), give the same results (tested against
-ndimage), cost a fraction of the time on these grids, and keep scipy out of a
-command's start (importing scipy.ndimage takes 0.2 s, with scipy.special that it loads).
+and only into cells within a range of the seed's), by a disc, square minimum and maximum
+filters, neighbour counts, and 8-connected components with their bounding boxes. These
+kernels give ndimage's results (tested against it) on the calling thread alone, and keep
+scipy out of a command's start (importing scipy.ndimage takes 0.2 s, with scipy.special
+that it loads). OpenCV's versions, a few microseconds each on a segmentation's window,
+hand each call to its thread pool, whose worker then spins on the other core: 1.45 ms of
+CPU per segmentation of the corridor (2.5 ms on the main thread), on a robot's computer
+the core its planner needs.
 """
 
 from __future__ import annotations
@@ -15,16 +17,13 @@ from __future__ import annotations
 import functools
 import math
 
-import cv2
 import numpy as np
 from numba import njit
 
-_SQUARE3 = np.ones((3, 3), np.uint8)
-
 
 def _bytes(mask: np.ndarray) -> np.ndarray:
-    """`mask` (its truth) as OpenCV takes it: a C-contiguous uint8 array of 0 and 1, a view
-    of a contiguous bool mask (no copy; OpenCV's 0 and 1 back are viewed as bool alike)."""
+    """`mask` (its truth) as a C-contiguous uint8 array of 0 and 1, a view of a contiguous
+    bool mask (no copy): the kernels' loops over bytes vectorise."""
     return np.ascontiguousarray(mask, dtype=np.bool_).view(np.uint8)
 
 
@@ -34,21 +33,70 @@ def dilate(mask: np.ndarray, iterations: int = 1, within: np.ndarray | None = No
     edge). With `within`, each step changes only cells of `within`; the others keep their
     value in `mask` (ndimage.binary_dilation's `mask`): `geodesic_dilate`."""
     if within is None:
-        return cv2.dilate(_bytes(mask), _SQUARE3, iterations=max(iterations, 0)).view(np.bool_)
-    return geodesic_dilate(np.ascontiguousarray(mask, dtype=np.bool_),
-                           np.ascontiguousarray(within, dtype=np.bool_), max(iterations, 0))
+        return _dilate_rows(_bytes(mask), _square(max(iterations, 0))).view(np.bool_)
+    return geodesic_dilate(mask, within, max(iterations, 0))
 
 
 def geodesic_dilate(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndarray:
     """The cells of `mask`, and those of `within` at most `steps` 8-connected moves from
     it through cells of `within` (`dilate` with `within`): a dilation a step, kept to
     `within` (ten times a breadth-first search's speed where the mask covers most of the
-    grid, as the unobserved space of a segmentation window does)."""
-    grown = np.asarray(mask, dtype=np.bool_).astype(np.uint8)  # a copy, as for 0 steps
-    inside = _bytes(within)
+    grid, as the unobserved space of a segmentation window does); it stops early when a
+    step adds nothing."""
+    return _geodesic(_bytes(mask), _bytes(within), steps).view(np.bool_)
+
+
+@njit(cache=True, nogil=True)
+def _geodesic(mask: np.ndarray, within: np.ndarray, steps: int) -> np.ndarray:
+    """`geodesic_dilate` on 0/1 bytes: each step the 3 x 3 maximum of the last, kept to
+    `within`. (Here and below, loops run over row slices: an index with an offset, which
+    Numba checks for wrapping round, keeps a loop from being vectorised.)"""
+    ny, nx = mask.shape
+    grown = mask.copy()
+    across = np.empty((ny, nx), np.uint8)  # the last step's maximum along each row
+    grown_in = np.empty(nx, np.uint8)
     for _ in range(steps):
-        grown = grown | (cv2.dilate(grown, _SQUARE3) & inside)
-    return grown.view(np.bool_)
+        for y in range(ny):
+            _row_max(grown[y], across[y], 1)
+        changed = 0
+        for y in range(ny):
+            _copy_into(grown_in, across[y])
+            if y > 0:
+                _or_into(grown_in, across[y - 1])
+            if y + 1 < ny:
+                _or_into(grown_in, across[y + 1])
+            row, inside = grown[y], within[y]
+            for x in range(nx):
+                value = row[x] | (grown_in[x] & inside[x])
+                changed |= value ^ row[x]
+                row[x] = value
+        if not changed:
+            break
+    return grown
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _copy_into(out: np.ndarray, values: np.ndarray) -> None:
+    """out = values (one row; a loop: Numba's slice assignment costs a row's time again)."""
+    for x in range(out.shape[0]):
+        out[x] = values[x]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _or_into(out: np.ndarray, values: np.ndarray) -> None:
+    """out |= values (one row)."""
+    for x in range(out.shape[0]):
+        out[x] |= values[x]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _row_max(values: np.ndarray, out: np.ndarray, reach: int) -> None:
+    """out: the maximum of `values` (one row of 0/1 bytes) within `reach` columns."""
+    nx = values.shape[0]
+    _copy_into(out, values)
+    for shift in range(1, min(reach, nx - 1) + 1):
+        _or_into(out[:nx - shift], values[shift:])
+        _or_into(out[shift:], values[:nx - shift])
 
 
 def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
@@ -138,44 +186,177 @@ def within_distance(mask: np.ndarray, distance: float) -> np.ndarray:
     `distance_transform(mask)[0] <= distance` as that float32 field compares, by one
     dilation with the disc of the offsets within it (a fifth of the transform's time for
     a disc of radius 3)."""
-    return cv2.dilate(_bytes(mask), _disc(float(distance))).view(np.bool_)
+    return _dilate_rows(_bytes(mask), _disc(float(distance))).view(np.bool_)
 
 
 @functools.lru_cache(maxsize=16)
 def _disc(distance: float) -> np.ndarray:
-    """The offsets (dy, dx) whose length, rounded to float32 as the distance field stores
-    it, is at most `distance` in float32 (as numpy compares the field with it)."""
+    """Half-widths of the disc of the offsets (dy, dx) whose length, rounded to float32 as
+    the distance field stores it, is at most `distance` in float32 (as numpy compares the
+    field with it): for each dy from -reach to reach, the largest |dx| in it."""
     limit = np.float32(distance)
     reach = max(math.floor(limit), 0)  # beyond, every length exceeds the limit
     dy, dx = np.mgrid[-reach:reach + 1, -reach:reach + 1]
-    return (np.sqrt(dy * dy + dx * dx).astype(np.float32) <= limit).astype(np.uint8)
+    inside = np.sqrt(dy * dy + dx * dx).astype(np.float32) <= limit
+    return np.where(inside, np.abs(dx), -1).max(axis=1).astype(np.int32)
+
+
+@functools.lru_cache(maxsize=16)
+def _square(reach: int) -> np.ndarray:
+    """Half-widths (`_disc`'s form) of the square of side 2 reach + 1."""
+    return np.full(2 * reach + 1, reach, np.int32)
+
+
+@njit(cache=True, nogil=True)
+def _dilate_rows(mask: np.ndarray, half_widths: np.ndarray) -> np.ndarray:
+    """`mask` (0/1 bytes) dilated by the shape of `half_widths` (`_disc`): 1 where row
+    y + dy holds a cell of `mask` within half_widths[dy + reach] columns (none where it
+    is -1)."""
+    ny, nx = mask.shape
+    reach = (len(half_widths) - 1) // 2
+    across = np.empty((max(half_widths.max(), 0) + 1, ny, nx), np.uint8)  # by half-width
+    for width in range(across.shape[0]):
+        for y in range(ny):
+            _row_max(mask[y], across[width, y], width)
+    out = np.zeros((ny, nx), np.uint8)
+    for y in range(ny):
+        for k in range(len(half_widths)):
+            yy, width = y + k - reach, half_widths[k]
+            if 0 <= yy < ny and width >= 0:
+                _or_into(out[y], across[width, yy])
+    return out
 
 
 def max_filter(mask: np.ndarray, size: int) -> np.ndarray:
     """True where any cell of the `size` x `size` square centred there is (odd size)."""
-    return cv2.dilate(_bytes(mask), np.ones((size, size), np.uint8)).view(np.bool_)
+    return _dilate_rows(_bytes(mask), _square(size // 2)).view(np.bool_)
 
 
 def neighbours(mask: np.ndarray) -> np.ndarray:
     """How many of each cell's 8 neighbours are in `mask` (uint8; none beyond the edge)."""
-    count = cv2.boxFilter(_bytes(mask), -1, (3, 3), normalize=False,
-                          borderType=cv2.BORDER_CONSTANT)
-    return count - mask
+    return _neighbours(_bytes(mask))
+
+
+@njit(cache=True, nogil=True)
+def _neighbours(mask: np.ndarray) -> np.ndarray:
+    """`neighbours`: the sums along each row of three, then along each column."""
+    ny, nx = mask.shape
+    across = np.empty((ny, nx), np.uint8)  # each cell and its two beside it in the row
+    for y in range(ny):
+        _row_max(mask[y], across[y], 0)
+        _add_into(across[y, :nx - 1], mask[y, 1:])
+        _add_into(across[y, 1:], mask[y, :nx - 1])
+    count = np.empty((ny, nx), np.uint8)
+    for y in range(ny):
+        row = count[y]
+        _copy_into(row, across[y])
+        for x in range(nx):
+            row[x] -= mask[y, x]
+        if y > 0:
+            _add_into(row, across[y - 1])
+        if y + 1 < ny:
+            _add_into(row, across[y + 1])
+    return count
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_into(out: np.ndarray, values: np.ndarray) -> None:
+    """out += values (one row)."""
+    for x in range(out.shape[0]):
+        out[x] += values[x]
 
 
 def min_filter(values: np.ndarray, size: int) -> np.ndarray:
     """The least value (float32) in the `size` x `size` square centred on each cell (odd
-    size; cells beyond the edge do not count)."""
-    return cv2.erode(np.ascontiguousarray(values, dtype=np.float32),
-                     np.ones((size, size), np.uint8), borderType=cv2.BORDER_REPLICATE)
+    size; cells beyond the edge do not count; no NaN)."""
+    return _min_filter(np.ascontiguousarray(values, dtype=np.float32), size // 2)
+
+
+@njit(cache=True, nogil=True)
+def _min_filter(values: np.ndarray, reach: int) -> np.ndarray:
+    """`min_filter`: the least along each row within `reach`, then along each column."""
+    ny, nx = values.shape
+    across = values.copy()
+    for y in range(ny):
+        row, source = across[y], values[y]
+        for shift in range(1, min(reach, nx - 1) + 1):
+            _min_into(row[:nx - shift], source[shift:])
+            _min_into(row[shift:], source[:nx - shift])
+    out = across.copy()
+    for y in range(ny):
+        for yy in range(max(y - reach, 0), min(y + reach + 1, ny)):
+            if yy != y:
+                _min_into(out[y], across[yy])
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _min_into(out: np.ndarray, values: np.ndarray) -> None:
+    """out = min(out, values) (one row)."""
+    for x in range(out.shape[0]):
+        out[x] = min(out[x], values[x])
 
 
 def _components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """OpenCV's 8-connected labels (int32, 0 off the mask) and per-label statistics (as
-    connectedComponentsWithStats' rows: x, y, width, height, area; row 0 zero), counted in
-    one pass over the labels (OpenCV's own statistics cost four times its labelling here)."""
-    count, labels = cv2.connectedComponents(_bytes(mask), connectivity=8, ltype=cv2.CV_32S)
+    """8-connected labels (int32, 0 off the mask, numbered in the order of each
+    component's first cell row by row, as ndimage.label numbers them) and per-label
+    statistics (rows x, y, width, height, cell count; row 0 zero)."""
+    labels, count = _label(_bytes(mask))
     return labels, _label_stats(labels, count)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _root(parent: np.ndarray, k: int) -> int:
+    """The root of provisional label `k` (halving the path on the way)."""
+    while parent[k] != k:
+        parent[k] = parent[parent[k]]
+        k = parent[k]
+    return k
+
+
+@njit(cache=True, nogil=True)
+def _label(mask: np.ndarray) -> tuple[np.ndarray, int]:
+    """`_components`' labels and their count with the background (one pass of provisional
+    labels joined by union-find, each root the least of its component, then one to number
+    the roots)."""
+    ny, nx = mask.shape
+    labels = np.zeros((ny, nx), np.int32)
+    parent = np.empty(ny * nx + 1, np.int32)
+    made = 0
+    for y in range(ny):
+        for x in range(nx):
+            if not mask[y, x]:
+                continue
+            own = 0  # the least root among the labelled neighbours before it
+            for dy, dx in ((0, -1), (-1, -1), (-1, 0), (-1, 1)):
+                yy, xx = y + dy, x + dx
+                if yy < 0 or xx < 0 or xx >= nx or labels[yy, xx] == 0:
+                    continue
+                root = _root(parent, labels[yy, xx])
+                if own == 0:
+                    own = root
+                elif root < own:
+                    parent[own] = root
+                    own = root
+                elif root > own:
+                    parent[root] = own
+            if own == 0:
+                made += 1
+                parent[made] = own = made
+            labels[y, x] = own
+    final = np.zeros(made + 1, np.int32)
+    count = 0
+    for k in range(1, made + 1):  # a root precedes the labels joined to it
+        root = _root(parent, k)
+        if root == k:
+            count += 1
+            final[k] = count
+        else:
+            final[k] = final[root]
+    for y in range(ny):
+        for x in range(nx):
+            labels[y, x] = final[labels[y, x]]
+    return labels, count + 1
 
 
 @njit(cache=True, nogil=True)
@@ -215,7 +396,7 @@ def component_boxes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def large_components(mask: np.ndarray, min_cells: int) -> np.ndarray:
     """`mask` without its 8-connected components of fewer than `min_cells` cells."""
     labels, stats = _components(mask)
-    keep = stats[:, cv2.CC_STAT_AREA] >= min_cells
+    keep = stats[:, 4] >= min_cells
     keep[0] = False
     return keep.take(labels)
 
