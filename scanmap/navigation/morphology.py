@@ -301,8 +301,7 @@ def _components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """8-connected labels (int32, 0 off the mask, numbered in the order of each
     component's first cell row by row, as ndimage.label numbers them) and per-label
     statistics (rows x, y, width, height, cell count; row 0 zero)."""
-    labels, count = _label(_bytes(mask))
-    return labels, _label_stats(labels, count)
+    return _label(_bytes(mask))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -315,75 +314,71 @@ def _root(parent: np.ndarray, k: int) -> int:
 
 
 @njit(cache=True, nogil=True)
-def _label(mask: np.ndarray) -> tuple[np.ndarray, int]:
-    """`_components`' labels and their count with the background (one pass of provisional
-    labels joined by union-find, each root the least of its component, then one to number
-    the roots)."""
+def _label(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`_components` by the runs of each row: a run joins (union-find, each root the least
+    of its component) the runs of the row above that touch it, diagonally too; the
+    components are then numbered by their first runs, and their runs painted and
+    counted. A window's masks are mostly long runs (the unobserved space, the floor):
+    a run's work, not a cell's."""
     ny, nx = mask.shape
-    labels = np.zeros((ny, nx), np.int32)
-    parent = np.empty(ny * nx + 1, np.int32)
+    most = ny * ((nx + 1) // 2) + 1  # runs at most, with the unused 0
+    run_y, run_start, run_end = (np.empty(most, np.int32), np.empty(most, np.int32),
+                                 np.empty(most, np.int32))
+    parent = np.empty(most, np.int32)
     made = 0
+    above = above_end = 1  # the row above's runs: made + 1 .. of the last row
     for y in range(ny):
-        for x in range(nx):
-            if not mask[y, x]:
+        row = mask[y]
+        first = made + 1
+        touching = above  # the first run above that may touch this row's next run
+        x = 0
+        while x < nx:
+            if not row[x]:
+                x += 1
                 continue
-            own = 0  # the least root among the labelled neighbours before it
-            for dy, dx in ((0, -1), (-1, -1), (-1, 0), (-1, 1)):
-                yy, xx = y + dy, x + dx
-                if yy < 0 or xx < 0 or xx >= nx or labels[yy, xx] == 0:
-                    continue
-                root = _root(parent, labels[yy, xx])
-                if own == 0:
-                    own = root
-                elif root < own:
+            start = x
+            while x < nx and row[x]:
+                x += 1
+            made += 1
+            run_y[made], run_start[made], run_end[made] = y, start, x
+            parent[made] = own = made
+            while touching < above_end and run_end[touching] < start:
+                touching += 1
+            k = touching
+            while k < above_end and run_start[k] <= x:  # touches [start - 1, x]
+                root = _root(parent, k)
+                if root < own:
                     parent[own] = root
                     own = root
                 elif root > own:
                     parent[root] = own
-            if own == 0:
-                made += 1
-                parent[made] = own = made
-            labels[y, x] = own
+                k += 1
+        above, above_end = first, made + 1
     final = np.zeros(made + 1, np.int32)
     count = 0
-    for k in range(1, made + 1):  # a root precedes the labels joined to it
+    for k in range(1, made + 1):  # a root precedes the runs joined to it
         root = _root(parent, k)
         if root == k:
             count += 1
             final[k] = count
         else:
             final[k] = final[root]
-    for y in range(ny):
-        for x in range(nx):
-            labels[y, x] = final[labels[y, x]]
-    return labels, count + 1
-
-
-@njit(cache=True, nogil=True)
-def _label_stats(labels: np.ndarray, count: int) -> np.ndarray:
-    """Bounding box (x, y, width, height) and cell count of each label 1..count - 1 (row 0,
-    the background, all zero)."""
-    ny, nx = labels.shape
-    stats = np.zeros((count, 5), np.int32)
-    right = np.zeros(count, np.int32)
-    for y in range(ny):  # rows in order: a label's first row is its top, its last its bottom
-        for x in range(nx):
-            k = labels[y, x]
-            if k == 0:
-                continue
-            if stats[k, 4] == 0:
-                stats[k, 0], stats[k, 1], right[k] = x, y, x
-            elif x < stats[k, 0]:
-                stats[k, 0] = x
-            elif x > right[k]:
-                right[k] = x
-            stats[k, 3] = y
-            stats[k, 4] += 1
-    for k in range(1, count):
-        if stats[k, 4]:
-            stats[k, 2] = right[k] - stats[k, 0] + 1
-            stats[k, 3] -= stats[k, 1] - 1
-    return stats
+    labels = np.zeros((ny, nx), np.int32)
+    stats = np.zeros((count + 1, 5), np.int32)  # x, y, right, bottom, cells; then widths
+    for k in range(1, made + 1):
+        label, y, start, end = final[k], run_y[k], run_start[k], run_end[k]
+        labels[y, start:end] = label
+        if stats[label, 4] == 0:
+            stats[label, 0], stats[label, 1], stats[label, 2] = start, y, end
+        else:
+            stats[label, 0] = min(stats[label, 0], start)
+            stats[label, 2] = max(stats[label, 2], end)
+        stats[label, 3] = y + 1
+        stats[label, 4] += end - start
+    for label in range(1, count + 1):
+        stats[label, 2] -= stats[label, 0]
+        stats[label, 3] -= stats[label, 1]
+    return labels, stats
 
 
 def component_boxes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
