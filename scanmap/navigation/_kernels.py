@@ -902,7 +902,8 @@ def _spans_no_step(heights: np.ndarray, y: int, x: int, far: float, max_step: fl
 
 
 @njit(cache=True, nogil=True)
-def bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndarray:
+def bridged_steps(heights: np.ndarray, max_step: float, reach: float, varied: np.ndarray
+                  ) -> np.ndarray:
     """Candidates that bridge a step too high for the robot: within `max_step` of two
     candidates that lie more than max_step apart in height, within `reach` cells of each
     other and on either side of it (inside the circle their distance spans), and more
@@ -913,7 +914,9 @@ def bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndar
     two sides three cells apart. `reach` (cells) keeps a ramp within the robot's slope
     clear of it (its heights that far apart differ by less than a step). A cell level
     with one side (a ramp's edge beside its face) is no bridge, nor one at a ramp's side
-    beside the floor (the ramp rises along it, the floor lies across)."""
+    beside the floor (the ramp rises along it, the floor lies across). Only cells of
+    `varied` are looked at: any other has no two candidates more than max_step apart
+    round it (`floor._bridged_steps`)."""
     ny, nx = heights.shape
     out = np.zeros((ny, nx), np.bool_)
     margin = 0.1 * max_step
@@ -925,7 +928,7 @@ def bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndar
     for y in range(ny):
         for x in range(nx):
             hd = heights[y, x]
-            if np.isnan(hd):
+            if np.isnan(hd) or not varied[y, x]:
                 continue
             n_above, n_below = 0, 0
             top, bottom = -np.inf, np.inf

@@ -518,7 +518,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # two floors at most, `step_edges`)
     steep = (slope > params.max_slope) | nk.faces_below(layers.levels, cand,
                                                         robot.step_height)  # False for NaN
-    bridges = nk.bridged_steps(cand, robot.step_height, _bridge_reach(robot, params, res)) \
+    bridges = _bridged_steps(cand, robot.step_height, _bridge_reach(robot, params, res)) \
         & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
@@ -742,6 +742,15 @@ def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> 
     (0.17 m, 3.4 cells at the defaults), at least two cells."""
     run = 0.9 * robot.step_height / max(math.tan(params.max_slope), 1e-9)
     return max(run / resolution, 2.0)
+
+
+def _bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndarray:
+    """`nk.bridged_steps`, looking only where the candidates in the square of `reach`
+    cells round a cell span more than `max_step` (a bridge needs two that far apart
+    within `reach` of it): on level floor that is few cells, and their search was a
+    twentieth of a segmentation."""
+    varied = morphology.span_filter(heights, 2 * int(reach) + 1) > max_step
+    return nk.bridged_steps(heights, max_step, reach, varied)
 
 
 def _over_the_rim(mean_hits: np.ndarray, dropped: np.ndarray, rows: np.ndarray,

@@ -297,6 +297,29 @@ def _min_into(out: np.ndarray, values: np.ndarray) -> None:
         out[x] = min(out[x], values[x])
 
 
+def span_filter(values: np.ndarray, size: int) -> np.ndarray:
+    """How far apart (float32) the highest and the lowest value not NaN in the `size` x
+    `size` square centred on each cell lie (odd size; -inf where all are NaN)."""
+    return _span_filter(np.ascontiguousarray(values, dtype=np.float32), size // 2)
+
+
+@njit(cache=True, nogil=True)
+def _span_filter(values: np.ndarray, reach: int) -> np.ndarray:
+    """`span_filter`: `_min_filter` of the values and of their negatives, NaN left out."""
+    ny, nx = values.shape
+    low, high = np.empty((ny, nx), np.float32), np.empty((ny, nx), np.float32)
+    for y in range(ny):
+        for x in range(nx):
+            value = values[y, x]
+            low[y, x] = np.inf if np.isnan(value) else value
+            high[y, x] = np.inf if np.isnan(value) else -value
+    low, high = _min_filter(low, reach), _min_filter(high, reach)
+    for y in range(ny):
+        for x in range(nx):
+            low[y, x] = -high[y, x] - low[y, x]
+    return low
+
+
 def _components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """8-connected labels (int32, 0 off the mask, numbered in the order of each
     component's first cell row by row, as ndimage.label numbers them) and per-label

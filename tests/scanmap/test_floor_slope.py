@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.navigation import _kernels as nk
@@ -183,7 +184,7 @@ def _row(*heights: float) -> np.ndarray:
     ((0.0, 0.0, 0.2, 0.2), ()),  # a box top: no candidate between
 ])
 def test_bridged_steps_are_the_cells_between_two_sides_of_a_step(heights, bridges):
-    flagged = nk.bridged_steps(_row(*heights), STEP, REACH_OF_A_STEP)
+    flagged = floor._bridged_steps(_row(*heights), STEP, REACH_OF_A_STEP)
     assert tuple(np.flatnonzero(flagged[1])) == bridges
     assert not flagged[0].any() and not flagged[2].any()
 
@@ -209,7 +210,7 @@ TURNED_STEP_MM = [
 
 def test_the_floor_grown_down_a_turned_steps_face_stops_at_the_step():
     heights = (np.array(TURNED_STEP_MM[::-1]) / 1000.0).astype(np.float32)
-    bridges = nk.bridged_steps(heights, STEP, REACH_OF_A_STEP)
+    bridges = floor._bridged_steps(heights, STEP, REACH_OF_A_STEP)
     grown = grow_region(np.where(bridges, np.nan, heights), heights > -0.003, STEP,
                            np.isnan(heights), math.tan(FloorConfig().max_slope) * RES, heights)
     lower = heights < -0.055
@@ -225,7 +226,7 @@ def test_no_cell_of_a_ramp_within_max_slope_bridges_a_step(degrees, direction, b
     y, x = np.mgrid[0:11, 0:11] * RES
     rise = math.tan(math.radians(degrees)) * (math.cos(direction) * x + math.sin(direction) * y)
     heights = (base + rise).astype(np.float32)
-    assert not nk.bridged_steps(heights, STEP, REACH_OF_A_STEP).any()
+    assert not floor._bridged_steps(heights, STEP, REACH_OF_A_STEP).any()
 
 
 @settings(max_examples=40, deadline=None)
@@ -324,3 +325,15 @@ def test_the_floor_grows_no_staircase_down_a_steps_edge():
     grown = grow_region(heights, seeds, STEP, np.zeros((7, 12), bool),
                            math.tan(MAX_SLOPE) * RES, heights)
     assert grown[:, :6].all() and not grown[:, 6:].any()
+
+
+@settings(max_examples=60, deadline=None)
+@given(heights=arrays(np.float32, st.tuples(st.integers(1, 16), st.integers(1, 16)),
+                      elements=st.sampled_from([0.0, 0.0, 0.0, 0.0, 0.0, 0.03, 0.06, np.nan]),
+                      fill=st.nothing()))
+def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(heights):
+    """`floor._bridged_steps` looks only where the candidates round a cell span more than
+    a step; the kernel asked to look everywhere finds the same cells (on level floor
+    with a few cells a step's face or its far side apart: bridges here and there)."""
+    everywhere = nk.bridged_steps(heights, STEP, REACH_OF_A_STEP, np.ones(heights.shape, bool))
+    assert np.array_equal(floor._bridged_steps(heights, STEP, REACH_OF_A_STEP), everywhere)

@@ -48,6 +48,17 @@ def test_min_filter_matches_ndimage(values, size):
                           ndimage.minimum_filter(values, size=size))
 
 
+@settings(max_examples=60, deadline=None)
+@given(values=arrays(np.float32, st.tuples(st.integers(1, 30), st.integers(1, 30)),
+                     elements=st.one_of(st.floats(-5, 5, width=32), st.just(np.nan)),
+                     fill=st.nothing()),
+       size=st.sampled_from([3, 5, 7]))
+def test_span_filter_matches_ndimage(values, size):
+    highest = ndimage.maximum_filter(np.where(np.isnan(values), -np.inf, values), size=size)
+    lowest = ndimage.minimum_filter(np.where(np.isnan(values), np.inf, values), size=size)
+    assert np.array_equal(morphology.span_filter(values, size), highest - lowest)
+
+
 def components(mask: np.ndarray) -> tuple[np.ndarray, int, list[tuple[slice, slice]]]:
     """`component_boxes` as ndimage gives it: labels, count, (rows, columns) slices."""
     labels, boxes = morphology.component_boxes(mask)
