@@ -162,36 +162,52 @@ def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
     line u (base_link, each seen at its heading; `project_to_image`; inf stays where
     none), mark floor[slot, u] where one lies within FLOOR_TOLERANCE of z = 0, and count
     in off_plane[slot] the points farther than PLANE_TOLERANCE from the laser plane
-    (origin, normal: laser)."""
-    rotation = to_camera.ravel()
-    width = nearest.shape[1]
+    (origin, normal: laser). The points are projected first, in a loop of their own
+    that vectorises (`_project_lines`), then gathered by line."""
+    n = points.shape[0]
+    cosines, sines = np.empty(n), np.empty(n)
     last, c, s = np.nan, 1.0, 0.0
-    for i in range(points.shape[0]):
+    for i in range(n):  # the heading's turn, once per frame
         if headings[i] != last:
             last = headings[i]
             c, s = np.cos(last), np.sin(last)
-        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
-        mx = mount_inverse[0, 0] * px + mount_inverse[0, 1] * py + mount_inverse[0, 2] * pz \
-            + mount_inverse[0, 3]
-        my = mount_inverse[1, 0] * px + mount_inverse[1, 1] * py + mount_inverse[1, 2] * pz \
-            + mount_inverse[1, 3]
-        mz = mount_inverse[2, 0] * px + mount_inverse[2, 1] * py + mount_inverse[2, 2] * pz \
-            + mount_inverse[2, 3]
-        hx, hy, hz = c * mx + s * my, c * my - s * mx, mz
-        if abs((hx - laser[0]) * laser[3] + (hy - laser[1]) * laser[4]
-               + (hz - laser[2]) * laser[5]) > PLANE_TOLERANCE:
+        cosines[i], sines[i] = c, s
+    lines, ranges, off = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+    _project_lines(points, cosines, sines, mount_inverse, to_camera.ravel(), camera,
+                   intrinsics, dist, laser, lines, ranges, off)
+    width = nearest.shape[1]
+    for i in range(n):
+        if off[i]:
             off_plane[slot[i]] += 1
-        hx, hy, hz = hx - camera[0], hy - camera[1], hz - camera[2]
-        u, _, ahead = project_to_image(hx, hy, hz, rotation, intrinsics, dist)
-        if not ahead:
-            continue
-        u = np.rint(u)
-        if 0.0 <= u < width:
-            line = int(u)
-            nearest[slot[i], line] = min(nearest[slot[i], line],
-                                         np.sqrt(hx * hx + hy * hy + hz * hz))
+        if 0.0 <= lines[i] < width:
+            line = int(lines[i])
+            nearest[slot[i], line] = min(nearest[slot[i], line], ranges[i])
             if abs(points[i, 2]) <= FLOOR_TOLERANCE:
                 floor[slot[i], line] = True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _project_lines(points: np.ndarray, cosines: np.ndarray, sines: np.ndarray,
+                   mount_inverse: np.ndarray, rotation: np.ndarray, camera: np.ndarray,
+                   intrinsics: np.ndarray, dist: np.ndarray, laser: np.ndarray,
+                   lines: np.ndarray, ranges: np.ndarray, off: np.ndarray) -> None:
+    """`_line_returns`' projections: each point's image line (rounded; -1 behind the
+    camera), its distance from the camera and whether it lies off the laser plane (no
+    branch but the projection's: the loop vectorises, with NumPy's error model, which
+    divides by zero without a check)."""
+    m = mount_inverse
+    for i in range(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        mx = m[0, 0] * px + m[0, 1] * py + m[0, 2] * pz + m[0, 3]
+        my = m[1, 0] * px + m[1, 1] * py + m[1, 2] * pz + m[1, 3]
+        mz = m[2, 0] * px + m[2, 1] * py + m[2, 2] * pz + m[2, 3]
+        hx, hy = cosines[i] * mx + sines[i] * my, cosines[i] * my - sines[i] * mx
+        off[i] = abs((hx - laser[0]) * laser[3] + (hy - laser[1]) * laser[4]
+                     + (mz - laser[2]) * laser[5]) > PLANE_TOLERANCE
+        hx, hy, hz = hx - camera[0], hy - camera[1], mz - camera[2]
+        u, _, ahead = project_to_image(hx, hy, hz, rotation, intrinsics, dist)
+        lines[i] = np.rint(u) if ahead else -1.0
+        ranges[i] = np.sqrt(hx * hx + hy * hy + hz * hz)
 
 
 @njit(cache=True, nogil=True)
