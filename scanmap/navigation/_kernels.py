@@ -1326,11 +1326,17 @@ def observed_span(nlev: np.ndarray, seen: np.ndarray) -> tuple[int, int, int, in
     (-1, -1, -1, -1) without any (`floor._observed_box`, in one pass)."""
     ny, nx = nlev.shape
     top, bottom, left, right = ny, -1, nx, -1
-    for y in range(ny):
-        for x in range(nx):
-            if nlev[y, x] > 0 or seen[y, x] != 0:
-                top, bottom = min(top, y), max(bottom, y)
-                left, right = min(left, x), max(right, x)
+    for y in range(ny):  # each row from both ends to its first observed cell
+        first = 0
+        while first < nx and nlev[y, first] == 0 and seen[y, first] == 0:
+            first += 1
+        if first == nx:
+            continue
+        last = nx - 1
+        while nlev[y, last] == 0 and seen[y, last] == 0:
+            last -= 1
+        top, bottom = min(top, y), y
+        left, right = min(left, first), max(right, last)
     if bottom < 0:
         return -1, -1, -1, -1
     return top, bottom, left, right
