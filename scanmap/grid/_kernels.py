@@ -215,7 +215,7 @@ def _corner_tiles_listed(tile_index, gx0, gy0, gx1, gy1) -> bool:
         and tile_index[ya, xb] != -1 and tile_index[yb, xa] != -1 and tile_index[yb, xb] != -1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def collect_missing_tiles(points: np.ndarray, origins: np.ndarray, cls: np.ndarray,
                           tile_index: np.ndarray, res: float, tile_cells: int, x0: float,
                           y0: float, out: np.ndarray) -> int:
@@ -226,11 +226,12 @@ def collect_missing_tiles(points: np.ndarray, origins: np.ndarray, cls: np.ndarr
     filled up (allocate, then call again).
     """
     count = 0
+    per_tile = 1.0 / tile_cells  # a power of two: multiplying by it divides exactly
     for i in range(points.shape[0]):
         if cls[i] != POINT_OK:
             continue
-        gx0, gy0 = (origins[i, 0] - x0) / res / tile_cells, (origins[i, 1] - y0) / res / tile_cells
-        gx1, gy1 = (points[i, 0] - x0) / res / tile_cells, (points[i, 1] - y0) / res / tile_cells
+        gx0, gy0 = (origins[i, 0] - x0) / res * per_tile, (origins[i, 1] - y0) / res * per_tile
+        gx1, gy1 = (points[i, 0] - x0) / res * per_tile, (points[i, 1] - y0) / res * per_tile
         if _corner_tiles_listed(tile_index, gx0, gy0, gx1, gy1):
             continue  # the common case once the map is built
         count = _request_tile(tile_index, int(np.floor(gy1)), int(np.floor(gx1)), out, count)
