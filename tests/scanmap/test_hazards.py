@@ -315,6 +315,15 @@ def test_a_noisy_floor_just_more_than_a_step_down_is_a_drop_off(seed):
     assert run["drop_found"] >= 0.5 * run["drop_cells"]
 
 
+@pytest.mark.parametrize("room", [ramp_room(6), mixed_room(4)], ids=["ramp6", "mixed4"])
+def test_the_drop_offs_rim_step_keeps_to_the_line_of_sight(room):
+    """The drop-off spread through a rim's shadow steps once more towards where the robot
+    stood, up to the rim; stepping sideways at a hole's corner, it ran past the hole's
+    side wall onto the floor between two laser lines (ramp room 6: 1.28 cells off the
+    true edge in a scan, mixed room 4: 1.71)."""
+    assert hazard_run(scene=room)["edge_error_any_scan"] <= 1.0
+
+
 @pytest.mark.parametrize("room", [random_room(8), mixed_room(3), random_room(52),
                                   mixed_room(56)],
                          ids=["random8", "mixed3", "random52", "mixed56"])
