@@ -2,7 +2,7 @@
 
 The segmentation needs a few of scipy.ndimage's operations on small boolean grids:
 dilation by the 3 x 3 square (also geodesic: grown only inside a mask, a step at a time,
-and only into cells within a range of the seed's), by a disc, square minimum and maximum
+and only into cells within a range of the seed's), by a disc, square minimum, maximum and span
 filters, neighbour counts, and 8-connected components with their bounding boxes. These
 kernels give ndimage's results (tested against it) on the calling thread alone, and keep
 scipy out of a command's start (importing scipy.ndimage takes 0.2 s, with scipy.special
