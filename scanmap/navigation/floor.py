@@ -719,11 +719,13 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # Floor next to a DROP_OFF cell more than plane_tolerance below the largest floor
     # plane: a hole's far wall's top, a few cm down, grown into the floor (rendered
     # rooms: FREE a cell inside the hole), or a rim the edge crosses; or a rim cell
-    # mostly over the hole (`_over_the_rim`)
-    beside = (state == FREE) & (layers.nlev > 0) & ~stood & morphology.dilate(dropped)
+    # mostly over the hole (`_over_the_rim`); the hole's side counting its cells without
+    # a hit next to a DROP_OFF cell (between the laser's lines, no rim is known there)
+    holeward = dropped | (state == UNKNOWN) & (layers.nlev == 0) & morphology.dilate(dropped)
+    beside = (state == FREE) & (layers.nlev > 0) & ~stood & morphology.dilate(holeward)
     if beside.any():
         by, bx = _cells(beside)
-        off = _over_the_rim(hits_at[by, bx], dropped, by, bx, res)
+        off = _over_the_rim(hits_at[by, bx], holeward, by, bx, res)
         if planes:
             off |= bottom[by, bx] < planes[0].height_at(xs[bx], ys[by]) \
                 - params.plane_tolerance
