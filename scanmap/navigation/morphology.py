@@ -229,8 +229,7 @@ def _dilate_rows(mask: np.ndarray, half_widths: np.ndarray) -> np.ndarray:
         return out
     reach = (len(half_widths) - 1) // 2
     across = np.empty((max(half_widths.max(), 0) + 1, ny, nx), np.uint8)  # by half-width
-    for y in range(ny):
-        _copy_into(across[0, y], mask[y])
+    _copy_into(across[0].reshape(-1), mask.reshape(-1))
     for width in range(1, across.shape[0]):
         for y in range(ny):
             row, source = across[width, y], mask[y]
@@ -263,7 +262,7 @@ def _neighbours(mask: np.ndarray) -> np.ndarray:
     ny, nx = mask.shape
     across = np.empty((ny, nx), np.uint8)  # each cell and its two beside it in the row
     for y in range(ny):
-        _row_max(mask[y], across[y], 0)
+        _copy_into(across[y], mask[y])
         _add_into(across[y, :nx - 1], mask[y, 1:])
         _add_into(across[y, 1:], mask[y, :nx - 1])
     count = np.empty((ny, nx), np.uint8)
