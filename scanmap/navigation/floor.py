@@ -699,15 +699,15 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # to two cells inside the hole (the cells between unknown), and so few are no floor
     # to drive on there. A dip counts where it lies below every floor beside it, or next
     # to a cell without a hit (a hole's far wall, its side wall's top) and below every
-    # floor beside it that is no dip itself; not the face of a raised ramp seen whole
-    # from its foot on the floor beside it up to its surface, nor that foot, level with
-    # the floor round it (a dip only against the ramp rising beside it): the ramp's cells
-    # beside them, crossed by one laser line or two, were left UNKNOWN
+    # floor within two cells that is no dip itself; not the face of a raised ramp seen
+    # whole from its foot on the floor beside it up to its surface, nor that foot, level
+    # with the floor round it (a dip only against the ramp rising beside it): the ramp's
+    # cells beside them, crossed by one laser line or two, were left UNKNOWN
     scant = (layers.counts[:, :, 0, gk.HITS] <= 2) & (layers.nlev > 0) & ~stood
     dropped = state == DROP_OFF  # the rules below only take FREE cells to UNKNOWN
     beside_unseen = dips & morphology.dilate(layers.nlev == 0)
     if beside_unseen.any():
-        beside_unseen &= _below_all_floor(layers.nlev, bottom, is_floor & ~dips, 0.0, 3)
+        beside_unseen &= _below_all_floor(layers.nlev, bottom, is_floor & ~dips, 0.0)
     sunken = dips & _below_all_floor(layers.nlev, bottom, is_floor, params.plane_tolerance) \
         | beside_unseen
     state[scant & (state == FREE) & morphology.dilate(dropped | sunken, 2)] = UNKNOWN
@@ -922,14 +922,14 @@ def _floor_samples(layers: CellLayers, is_floor: np.ndarray) -> np.ndarray:
 
 
 def _below_all_floor(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,
-                     tolerance: float, size: int = 5) -> np.ndarray:
+                     tolerance: float) -> np.ndarray:
     """Cells with hits whose lowest level's `bottom` lies more than `tolerance` below the
-    lowest bottom of the floor cells in their `size` x `size` square (of `_dips`, those
-    below every floor near them: not the face of a raised ramp, whose foot is the floor
-    beside it, two cells off where a turned ramp's face crosses two)."""
+    lowest bottom of the floor cells in their 5 x 5 square (of `_dips`, those below every
+    floor near them: not the face of a raised ramp, whose foot is the floor beside it,
+    two cells off where a turned ramp's face crosses two)."""
     with np.errstate(invalid="ignore"):
         floor_bottom = np.where(is_floor & (nlev > 0), bottom, np.inf)
-        return (nlev > 0) & (bottom < morphology.min_filter(floor_bottom, size) - tolerance)
+        return (nlev > 0) & (bottom < morphology.min_filter(floor_bottom, 5) - tolerance)
 
 
 def _dips(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,

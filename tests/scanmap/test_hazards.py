@@ -261,7 +261,7 @@ def test_the_floor_beside_a_turned_steps_face_does_not_carry_the_floor_down_it()
     assert hazard_run(scene=step_room(11))["drop_free_any_scan"] == 0
 
 
-@pytest.mark.parametrize("seed, least", [(3, 0.975), (4, 0.985), (16, 0.966)])
+@pytest.mark.parametrize("seed, least", [(3, 0.975), (4, 0.985), (16, 0.97)])
 def test_a_ramps_cells_beside_its_raised_side_are_free_on_few_hits(seed, least):
     # Ramp rooms 3 and 4 at 0.3 px of laser peak noise: the cells of a raised ramp's
     # side face reach from the floor beside it up to the ramp, lower than the ramp's
@@ -271,7 +271,8 @@ def test_a_ramps_cells_beside_its_raised_side_are_free_on_few_hits(seed, least):
     # and beside no cell without a hit, is a face, not a hole's wall (0.977 and 0.990).
     # Ramp room 16: the floor at the foot of a ramp's side, level with the floor round
     # it, a dip against the ramp beside it and next to cells without a hit (0.963); a dip
-    # beside such a cell counts only below every floor beside it that is no dip (0.968)
+    # beside such a cell counts only below every floor within two cells that is no dip
+    # (0.974)
     run = hazard_run(scene=ramp_room(seed), pixel_sigma=0.3)
     assert run["ramp_traversable_f1"] >= least
 
