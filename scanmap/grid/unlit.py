@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from scanmap.grid._kernels import columns
 from scanmap_driver.scan import Scan
 from scanmap_driver.scanner_model import ScannerModel
 from scanmap_driver.transforms import transform_points
@@ -154,7 +155,7 @@ def project_to_image(x: float, y: float, z: float, to_camera: np.ndarray,
 
 
 @njit(cache=True, nogil=True)
-def _line_returns(columns: np.ndarray, headings: np.ndarray, slot: np.ndarray,
+def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
                   mount_inverse: np.ndarray, to_camera: np.ndarray, camera: np.ndarray,
                   intrinsics: np.ndarray, dist: np.ndarray, laser: np.ndarray,
                   nearest: np.ndarray, floor: np.ndarray, off_plane: np.ndarray) -> None:
@@ -162,10 +163,9 @@ def _line_returns(columns: np.ndarray, headings: np.ndarray, slot: np.ndarray,
     line u (base_link, each seen at its heading; `project_to_image`; inf stays where
     none), mark floor[slot, u] where one lies within FLOOR_TOLERANCE of z = 0, and count
     in off_plane[slot] the points farther than PLANE_TOLERANCE from the laser plane
-    (origin, normal: laser). The points (`columns`: 3 x N, their x, y and z rows) are
-    projected first, in a loop of their own that vectorises (`_project_lines`), then
-    gathered by line."""
-    n = columns.shape[1]
+    (origin, normal: laser). The points are projected first, by columns, in a loop of
+    their own that vectorises (`_project_lines`), then gathered by line."""
+    n = points.shape[0]
     cosines, sines = np.empty(n), np.empty(n)
     last, c, s = np.nan, 1.0, 0.0
     for i in range(n):  # the heading's turn, once per frame
@@ -174,7 +174,8 @@ def _line_returns(columns: np.ndarray, headings: np.ndarray, slot: np.ndarray,
             c, s = np.cos(last), np.sin(last)
         cosines[i], sines[i] = c, s
     lines, ranges, off = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-    _project_lines(columns[0], columns[1], columns[2], cosines, sines, mount_inverse,
+    xyz = columns(points)
+    _project_lines(xyz[0], xyz[1], xyz[2], cosines, sines, mount_inverse,
                    to_camera.ravel(), camera, intrinsics, dist, laser, lines, ranges, off)
     width = nearest.shape[1]
     for i in range(n):
@@ -183,7 +184,7 @@ def _line_returns(columns: np.ndarray, headings: np.ndarray, slot: np.ndarray,
         if 0.0 <= lines[i] < width:
             line = int(lines[i])
             nearest[slot[i], line] = min(nearest[slot[i], line], ranges[i])
-            if abs(columns[2, i]) <= FLOOR_TOLERANCE:
+            if abs(points[i, 2]) <= FLOOR_TOLERANCE:
                 floor[slot[i], line] = True
 
 
@@ -195,7 +196,7 @@ def _project_lines(xs: np.ndarray, ys: np.ndarray, zs: np.ndarray, cosines: np.n
                    off: np.ndarray) -> None:
     """`_line_returns`' projections of the points (xs, ys, zs: by columns, whose loads
     vectorise where the rows' interleaved x, y, z were gathered: 166 -> 86 us for 20,000
-    points): each point's image line (rounded; -1 behind the camera), its distance from
+    points, `columns`): each point's image line (rounded; -1 behind the camera), its distance from
     the camera and whether it lies off the laser plane (no branch but the projection's:
     the loop vectorises, with NumPy's error model, which divides by zero without a
     check)."""
@@ -394,7 +395,7 @@ def line_returns(scan: Scan, model: ScannerModel) -> LineReturns:
     nearest = np.full((len(frames), cam.width), np.inf)
     floor = np.zeros(nearest.shape, bool)
     off_plane = np.zeros(len(frames), np.int64)
-    _line_returns(np.ascontiguousarray(scan.points.T), scan.heading, slot.astype(np.int64),
+    _line_returns(scan.points, scan.heading, slot.astype(np.int64),
                   np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),

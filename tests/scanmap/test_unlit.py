@@ -314,7 +314,7 @@ def test_the_compiled_image_lines_are_those_of_project_head_points_with_distorti
     frames, slot = np.unique(scan.frame_index, return_inverse=True)
     nearest = np.full((len(frames), model.camera.width), np.inf)
     cam = model.camera
-    _line_returns(np.ascontiguousarray(scan.points.T), scan.heading, slot.astype(np.int64),
+    _line_returns(scan.points, scan.heading, slot.astype(np.int64),
                   np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),
