@@ -1321,9 +1321,11 @@ def footprint_cells(stood: np.ndarray, xs: np.ndarray, ys: np.ndarray, origin_x:
 
 
 @njit(cache=True, nogil=True)
-def observed_span(nlev: np.ndarray, seen: np.ndarray) -> tuple[int, int, int, int]:
+def observed_span(nlev: np.ndarray, seen: np.ndarray, stood: np.ndarray, origin_x: float,
+                  origin_y: float, res: float) -> tuple[int, int, int, int]:
     """First and last row and column of the cells with a level or with heights rays saw,
-    (-1, -1, -1, -1) without any (`floor._observed_box`, in one pass)."""
+    or holding a place the robot stood (`stood` (M, 2) x, y; places beyond the window
+    left out); (-1, -1, -1, -1) without any (`floor._observed_box`, in one pass)."""
     ny, nx = nlev.shape
     top, bottom, left, right = ny, -1, nx, -1
     for y in range(ny):  # each row from both ends to its first observed cell
@@ -1337,9 +1339,39 @@ def observed_span(nlev: np.ndarray, seen: np.ndarray) -> tuple[int, int, int, in
             last -= 1
         top, bottom = min(top, y), y
         left, right = min(left, first), max(right, last)
+    for i in range(stood.shape[0]):
+        col = np.floor((stood[i, 0] - origin_x) / res)
+        row = np.floor((stood[i, 1] - origin_y) / res)
+        if 0.0 <= col < nx and 0.0 <= row < ny:  # False for NaN
+            top, bottom = min(top, int(row)), max(bottom, int(row))
+            left, right = min(left, int(col)), max(right, int(col))
     if bottom < 0:
         return -1, -1, -1, -1
     return top, bottom, left, right
+
+
+@njit(cache=True, nogil=True)
+def plane_heights(normal: tuple[float, float, float], offset: float, xs: np.ndarray,
+                  ys: np.ndarray) -> np.ndarray:
+    """Height (float32, ny x nx) of the plane normal . p = offset over the cell centres
+    `xs` (nx,), `ys` (ny,): `FloorPlane.height_at`'s arithmetic, rounded once to float32,
+    without its two float64 temporaries the window's size."""
+    a, b, c = normal
+    out = np.empty((ys.shape[0], xs.shape[0]), np.float32)
+    for y in range(ys.shape[0]):
+        for x in range(xs.shape[0]):
+            out[y, x] = (offset - a * xs[x] - b * ys[y]) / c
+    return out
+
+
+@njit(cache=True, nogil=True)
+def centre_points(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """(ny, nx, 2) float32 x, y of the cell centres `xs` (nx,), `ys` (ny,)."""
+    out = np.empty((ys.shape[0], xs.shape[0], 2), np.float32)
+    for y in range(ys.shape[0]):
+        for x in range(xs.shape[0]):
+            out[y, x, 0], out[y, x, 1] = xs[x], ys[y]
+    return out
 
 
 @njit(cache=True, nogil=True)

@@ -400,13 +400,12 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                              margins)
     xs, ys = layers.cell_centers()
     if inner.planes:
-        floor_height = inner.planes[0].height_at(xs[None, :], ys[:, None]).astype(np.float32)
+        floor_height = nk.plane_heights(inner.planes[0].normal, inner.planes[0].offset, xs, ys)
     else:
         floor_height = np.full((ny, nx), np.nan if fallback_floor is None else fallback_floor,
                                np.float32)
     state = np.full((ny, nx), UNKNOWN, np.uint8)
-    points = np.empty((ny, nx, 2), np.float32)
-    points[..., 0], points[..., 1] = xs[None, :], ys[:, None]
+    points = nk.centre_points(xs, ys)
     band_logodds = np.full((ny, nx), np.nan, np.float32)
     is_floor = np.zeros((ny, nx), bool)
     slope = np.full((ny, nx), np.nan, np.float32)
@@ -465,15 +464,14 @@ def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[sl
     rays saw, and every place the robot stood, grown by `reach` cells (within the window;
     empty when nothing was observed)."""
     ny, nx = layers.shape
-    top, bottom, left, right = nk.observed_span(layers.nlev, layers.seen)
-    rows, cols = _stood_rows_cols(layers)
-    if bottom >= 0:  # the observed cells' bounds, with the places stood
-        rows, cols = np.append(rows, (top, bottom)), np.append(cols, (left, right))
-    if not len(rows):
+    top, bottom, left, right = nk.observed_span(
+        layers.nlev, layers.seen, np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2),
+        layers.origin[0], layers.origin[1], layers.resolution)
+    if bottom < 0:
         return slice(0, 0), slice(0, 0)
     reach += math.ceil(robot.radius / layers.resolution)  # the footprint round a place
-    return (slice(max(rows.min() - reach, 0), min(rows.max() + reach + 1, ny)),
-            slice(max(cols.min() - reach, 0), min(cols.max() + reach + 1, nx)))
+    return (slice(max(top - reach, 0), min(bottom + reach + 1, ny)),
+            slice(max(left - reach, 0), min(right + reach + 1, nx)))
 
 
 def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
