@@ -902,19 +902,24 @@ def _spans_no_step(heights: np.ndarray, y: int, x: int, far: float, max_step: fl
 
 
 @njit(cache=True, nogil=True)
-def bridged_steps(heights: np.ndarray, max_step: float, reach: float, varied: np.ndarray
-                  ) -> np.ndarray:
+def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach: float,
+                  varied: np.ndarray) -> np.ndarray:
     """Candidates that bridge a step too high for the robot: within `max_step` of two
     candidates that lie more than max_step apart in height, within `reach` cells of each
-    other and on either side of it (inside the circle their distance spans), and more
-    than a tenth of max_step from each (the thin levels a step's face leaves in the cells
-    it crosses). Growing the floor cell by cell within max_step would walk down such a
+    other and on either side of it (inside the circle their distance spans) or both on
+    `level` floor (two floors a step apart, wherever they lie round it), and more than a
+    tenth of max_step from each (the thin levels a step's face leaves in the cells it
+    crosses). Growing the floor cell by cell within max_step would walk down such a
     chain onto the floor below: 0, -2, -6, -8 cm down an 8 cm step, or 0, -1.6, -2.6,
     -3.5, -4.9, -6.1 cm where a turned 6 cm step's face crosses the cells at a slant, its
     two sides three cells apart. `reach` (cells) keeps a ramp within the robot's slope
     clear of it (its heights that far apart differ by less than a step). A cell level
     with one side (a ramp's edge beside its face) is no bridge, nor one at a ramp's side
-    beside the floor (the ramp rises along it, the floor lies across). Only cells of
+    beside the floor (the ramp rises along it, the floor lies across), unless both are
+    level: where the laser's lines cross a turned step's face sparsely, the floor above
+    it and the floor below that lie within reach of each other may both lie to one side
+    of a face cell, and two jumps across the gaps beside it joined the two floors (step
+    room 1009, 5.7 cm down, at 0.3 px: its lower floor FREE for six scans). Only cells of
     `varied` are looked at: any other has no two candidates more than max_step apart
     round it (`floor._bridged_steps`)."""
     ny, nx = heights.shape
@@ -923,8 +928,8 @@ def bridged_steps(heights: np.ndarray, max_step: float, reach: float, varied: np
     near2 = reach * reach
     cells = int(reach)
     side = 2 * cells + 1
-    above = np.empty((side * side, 3))  # (y, x, height) of the candidates above the cell
-    below = np.empty((side * side, 3))  # and below it, each within a step
+    # (y, x, height, level) of the candidates above the cell and below it, within a step
+    above, below = np.empty((side * side, 4)), np.empty((side * side, 4))
     for y in range(ny):
         for x in range(nx):
             hd = heights[y, x]
@@ -938,11 +943,13 @@ def bridged_steps(heights: np.ndarray, max_step: float, reach: float, varied: np
                         continue
                     h = heights[yy, xx]
                     if margin < h - hd <= max_step:  # False for NaN
-                        above[n_above, 0], above[n_above, 1], above[n_above, 2] = yy, xx, h
+                        above[n_above, 0], above[n_above, 1] = yy, xx
+                        above[n_above, 2], above[n_above, 3] = h, level[yy, xx]
                         n_above += 1
                         top = max(top, h)
                     elif margin < hd - h <= max_step:
-                        below[n_below, 0], below[n_below, 1], below[n_below, 2] = yy, xx, h
+                        below[n_below, 0], below[n_below, 1] = yy, xx
+                        below[n_below, 2], below[n_below, 3] = h, level[yy, xx]
                         n_below += 1
                         bottom = min(bottom, h)
             if top - bottom <= max_step:  # also when either side has none
@@ -952,8 +959,9 @@ def bridged_steps(heights: np.ndarray, max_step: float, reach: float, varied: np
                     if above[i, 2] - below[j, 2] > max_step \
                             and (above[i, 0] - below[j, 0]) ** 2 \
                             + (above[i, 1] - below[j, 1]) ** 2 <= near2 \
-                            and (above[i, 0] - y) * (below[j, 0] - y) \
-                            + (above[i, 1] - x) * (below[j, 1] - x) <= 0.0:
+                            and ((above[i, 0] - y) * (below[j, 0] - y)
+                                 + (above[i, 1] - x) * (below[j, 1] - x) <= 0.0
+                                 or (above[i, 3] > 0.0 and below[j, 3] > 0.0)):
                         out[y, x] = True
                         break
                 if out[y, x]:

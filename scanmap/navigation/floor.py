@@ -149,6 +149,11 @@ from scanmap_driver.errors import MapError
 # cells of the best plane so far (`ransac_iterations` at most): 16 when that plane holds
 # 90 % of the candidates, 86 at 60 %, all 200 below 46.5 %
 RANSAC_CONFIDENCE = 1.0 - 1e-9
+# A floor candidate this gentle (`nk.local_slope`) lies on level floor, for
+# `nk.bridged_steps`: two level floors more than a step apart are a step's two sides, not
+# a ramp (a floor's cells at 0.3 px of laser peak noise: 1.5 deg at the 90th percentile;
+# the cells a step's face crosses, 4-17 deg)
+LEVEL_SLOPE = math.radians(5.0)
 
 
 @dataclass(frozen=True)
@@ -516,8 +521,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # two floors at most, `step_edges`)
     steep = (slope > params.max_slope) | nk.faces_below(layers.levels, cand,
                                                         robot.step_height)  # False for NaN
-    bridges = _bridged_steps(cand, robot.step_height, _bridge_reach(robot, params, res)) \
-        & ~steep  # a step's face
+    bridges = _bridged_steps(cand, slope <= LEVEL_SLOPE, robot.step_height,
+                             _bridge_reach(robot, params, res)) & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
     gy, gx, cand_points = nk.cell_points(has, level, xs, ys)
@@ -754,13 +759,14 @@ def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> 
     return max(run / resolution, 2.0)
 
 
-def _bridged_steps(heights: np.ndarray, max_step: float, reach: float) -> np.ndarray:
-    """`nk.bridged_steps`, looking only where the candidates in the square of `reach`
-    cells round a cell span more than `max_step` (a bridge needs two that far apart
-    within `reach` of it): on level floor that is few cells, and their search was a
-    twentieth of a segmentation."""
+def _bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach: float
+                   ) -> np.ndarray:
+    """`nk.bridged_steps` (`level`: the candidates on level floor), looking only where the
+    candidates in the square of `reach` cells round a cell span more than `max_step` (a
+    bridge needs two that far apart within `reach` of it): on level floor that is few
+    cells, and their search was a twentieth of a segmentation."""
     varied = morphology.span_filter(heights, 2 * int(reach) + 1) > max_step
-    return nk.bridged_steps(heights, max_step, reach, varied)
+    return nk.bridged_steps(heights, level, max_step, reach, varied)
 
 
 def _over_the_rim(mean_hits: np.ndarray, dropped: np.ndarray, rows: np.ndarray,

@@ -597,6 +597,14 @@ def test_a_turned_step_down_just_deeper_than_a_step_is_never_free():
     assert hazard_run(scene=scene)["drop_free_any_scan"] == 0
 
 
+def test_a_step_down_whose_face_the_lines_cross_sparsely_is_never_free():
+    # Step room 1009's step down, 5.7 cm deep, at 0.3 px of laser peak noise: at the third
+    # scan a cell its face crossed (3.6 cm down) had the floor above and the floor below
+    # within reach of each other both to one side of it, and two jumps across the gaps
+    # beside it joined the floors: 116-157 of its cells FREE in scans 2-7
+    assert hazard_run(4, scene=step_room(1009), pixel_sigma=0.3)["drop_free_any_scan"] == 0
+
+
 @pytest.mark.parametrize("seed", [210, 404])
 def test_a_ramps_raised_end_is_floor_where_only_its_faces_upper_part_was_seen(seed):
     # Mixed rooms 210 and 404, ramps ending 18 cm above the floor: the cells of the raised
