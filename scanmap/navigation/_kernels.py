@@ -1373,16 +1373,6 @@ def plane_heights(normal: tuple[float, float, float], offset: float, xs: np.ndar
 
 
 @njit(cache=True, nogil=True)
-def centre_points(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    """(ny, nx, 2) float32 x, y of the cell centres `xs` (nx,), `ys` (ny,)."""
-    out = np.empty((ys.shape[0], xs.shape[0], 2), np.float32)
-    for y in range(ys.shape[0]):
-        for x in range(xs.shape[0]):
-            out[y, x, 0], out[y, x, 1] = xs[x], ys[y]
-    return out
-
-
-@njit(cache=True, nogil=True)
 def lowest_seen(seen: np.ndarray, z_min: float, mask_dz: float) -> np.ndarray:
     """Bottom height (m) of the lowest height bin rays saw free in each cell; -inf where
     none was (such a cell counts as probed, and cannot be FREE: its band is unseen)."""

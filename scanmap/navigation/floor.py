@@ -410,7 +410,8 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
         floor_height = np.full((ny, nx), np.nan if fallback_floor is None else fallback_floor,
                                np.float32)
     state = np.full((ny, nx), UNKNOWN, np.uint8)
-    points = nk.centre_points(xs, ys)
+    points = np.empty((ny, nx, 2), np.float32)
+    points[..., 0], points[..., 1] = xs[None, :], ys[:, None]
     band_logodds = np.full((ny, nx), np.nan, np.float32)
     is_floor = np.zeros((ny, nx), bool)
     slope = np.full((ny, nx), np.nan, np.float32)
@@ -554,8 +555,9 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     if carried.any():
         beyond = _carry(floor_height, carried, ~is_floor, params.fill_radius, res, margins)
     if planes:  # farther out, the largest floor plane
-        fy, fx = _cells(np.isnan(floor_height))
-        floor_height[fy, fx] = planes[0].height_at(xs[fx], ys[fy])
+        unknown = np.isnan(floor_height)
+        floor_height[unknown] = nk.plane_heights(planes[0].normal, planes[0].offset, xs,
+                                                 ys)[unknown]
     assumed = np.zeros((ny, nx), bool)
     if fallback_floor is not None:  # the caller vouches for the floor there
         assumed = np.isnan(floor_height)
