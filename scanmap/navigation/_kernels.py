@@ -733,7 +733,8 @@ for _k, _cells_of_k in enumerate(_LONG_CROSSED_LISTS):
 @njit(cache=True, nogil=True)
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
                 empty: np.ndarray, max_rise: float, candidates: np.ndarray,
-                tangents: np.ndarray, tolerance: float) -> np.ndarray:
+                tangents: np.ndarray, tolerance: float, seed_floor: np.ndarray,
+                planar: np.ndarray) -> np.ndarray:
     """Cells reachable from the seeds through 8-neighbours whose heights differ <=
     max_step, each step only where every candidate next to its start within max_step of
     it is within max_step of its end too (`_spans_no_step`: a cell at a step's edge, 9
@@ -752,9 +753,18 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     NaN where it has none) passes within `tolerance` of the other end (a ramp seen from
     afar is cut into islands by gaps two cells wide, and its raised end was an
     obstacle). Jumps are tried only from the few candidates the neighbours alone did not
-    reach (a jump is the same from either end), and onwards."""
+    reach (a jump is the same from either end), and onwards. A cell whose own window fits
+    no plane (`planar` False: one laser line's cells, `local_slope`) joins only within
+    max_step of its anchor: the height of the last planar cell on the growth's way to it,
+    or the seed's `seed_floor` (the floor plane's height there) before any. A line that
+    crossed a turned step's face at a slant grades from one floor to the other along a
+    chain one cell wide, each window round it holding that line alone (step room 1083,
+    6.9 cm down: 0, -1.5, ..., -6.6 cm over ten cells, 8 deg), and the growth walked down
+    it onto the lower floor; a ramp's cells fit planes where two lines cross their
+    windows. The anchor is that of the first way the breadth-first growth finds."""
     ny, nx = heights.shape
     inside = seeds.copy()
+    anchor = np.where(seeds, seed_floor, np.nan).astype(np.float32)
     queue = np.empty(ny * nx, np.int64)
     tail = 0
     for y in range(ny):
@@ -763,34 +773,53 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
                 queue[tail] = y * nx + x
                 tail += 1
     head = tail = _spread(heights, candidates, inside, queue, 0, tail, max_step, empty, max_rise,
-                          False, tangents, tolerance)
+                          False, tangents, tolerance, planar, anchor)
     for y in range(ny):
         for x in range(nx):
             if inside[y, x] or np.isnan(heights[y, x]):
                 continue
             for k in range(_JUMPS.shape[0]):
+                yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
                 if _can_jump(heights, candidates, empty, max_step, max_rise, y, x, k) \
-                        and inside[y + _JUMPS[k, 0], x + _JUMPS[k, 1]]:
+                        and inside[yy, xx] \
+                        and _anchored(heights, planar, anchor, max_step, yy, xx, y, x):
                     inside[y, x] = True
                     break
             for k in range(0 if inside[y, x] else _LONG_JUMPS.shape[0]):
+                yy, xx = y + _LONG_JUMPS[k, 0], x + _LONG_JUMPS[k, 1]
                 if _plane_jump(heights, candidates, empty, tangents, max_step, max_rise,
-                               tolerance, y, x, k) \
-                        and inside[y + _LONG_JUMPS[k, 0], x + _LONG_JUMPS[k, 1]]:
+                               tolerance, y, x, k) and inside[yy, xx] \
+                        and _anchored(heights, planar, anchor, max_step, yy, xx, y, x):
                     inside[y, x] = True
                     break
             if inside[y, x]:
                 queue[tail] = y * nx + x
                 tail += 1
     _spread(heights, candidates, inside, queue, head, tail, max_step, empty, max_rise, True,
-            tangents, tolerance)
+            tangents, tolerance, planar, anchor)
     return inside
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _anchored(heights: np.ndarray, planar: np.ndarray, anchor: np.ndarray, max_step: float,
+              y: int, x: int, yy: int, xx: int) -> bool:
+    """Whether `grow_region` may go on from the cell (y, x) to (yy, xx) by its anchors (a
+    planar cell anchors itself, another takes the anchor of the cell it came from, and
+    lies within max_step of it); sets the anchor of (yy, xx) if so."""
+    if planar[yy, xx]:
+        anchor[yy, xx] = heights[yy, xx]
+        return True
+    if abs(heights[yy, xx] - anchor[y, x]) <= max_step:
+        anchor[yy, xx] = anchor[y, x]
+        return True
+    return False
 
 
 @njit(cache=True, nogil=True)
 def _spread(heights: np.ndarray, candidates: np.ndarray, inside: np.ndarray, queue: np.ndarray,
             head: int, tail: int, max_step: float, empty: np.ndarray, max_rise: float,
-            jumps: bool, tangents: np.ndarray, tolerance: float) -> int:
+            jumps: bool, tangents: np.ndarray, tolerance: float, planar: np.ndarray,
+            anchor: np.ndarray) -> int:
     """`grow_region`'s breadth-first growth from the cells queue[head:tail] (inside),
     with or without jumps; returns the queue's new tail."""
     ny, nx = heights.shape
@@ -801,21 +830,24 @@ def _spread(heights: np.ndarray, candidates: np.ndarray, inside: np.ndarray, que
         for yy in range(max(y - 1, 0), min(y + 2, ny)):
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
                 if not inside[yy, xx] and abs(heights[yy, xx] - h) <= max_step \
-                        and _spans_no_step(candidates, y, x, heights[yy, xx], max_step):
+                        and _spans_no_step(candidates, y, x, heights[yy, xx], max_step) \
+                        and _anchored(heights, planar, anchor, max_step, y, x, yy, xx):
                     inside[yy, xx] = True
                     queue[tail] = yy * nx + xx
                     tail += 1
         for k in range(_JUMPS.shape[0] if jumps else 0):
             yy, xx = y + _JUMPS[k, 0], x + _JUMPS[k, 1]
             if _can_jump(heights, candidates, empty, max_step, max_rise, y, x, k) \
-                    and not inside[yy, xx]:
+                    and not inside[yy, xx] \
+                    and _anchored(heights, planar, anchor, max_step, y, x, yy, xx):
                 inside[yy, xx] = True
                 queue[tail] = yy * nx + xx
                 tail += 1
         for k in range(_LONG_JUMPS.shape[0] if jumps else 0):
             yy, xx = y + _LONG_JUMPS[k, 0], x + _LONG_JUMPS[k, 1]
             if _plane_jump(heights, candidates, empty, tangents, max_step, max_rise, tolerance,
-                           y, x, k) and not inside[yy, xx]:
+                           y, x, k) and not inside[yy, xx] \
+                    and _anchored(heights, planar, anchor, max_step, y, x, yy, xx):
                 inside[yy, xx] = True
                 queue[tail] = yy * nx + xx
                 tail += 1

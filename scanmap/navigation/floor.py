@@ -540,7 +540,10 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
         is_floor = nk.grow_region(level, seeds, robot.step_height, layers.nlev == 0,
                                    math.tan(params.max_slope) * res, cand, tangents,
-                                   2.0 * params.plane_noise)
+                                   2.0 * params.plane_noise,
+                                   nk.plane_heights(tuple(map(float, normal)), float(offset),
+                                                    xs, ys),
+                                   ~np.isnan(tangents[:, :, 3]))
         joined = nk.touching_floor(cand, is_floor, bridges, robot.step_height)
         is_floor |= joined  # one step on: a bridge joins the floor it touches, no further
         # and its height, in between on a step's face, goes no further either: carried

@@ -1,5 +1,5 @@
 """`_kernels.grow_region` for the tests, by default without tangent planes (no jumps
-along a plane, `_plane_jump`)."""
+along a plane, `_plane_jump`) and with every cell planar (no anchors)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,12 @@ from scanmap.navigation import _kernels as nk
 
 def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float, empty: np.ndarray,
                 max_rise: float, candidates: np.ndarray, tangents: np.ndarray | None = None,
-                tolerance: float = 0.0) -> np.ndarray:
-    """The floor grown from `seeds` (see `_kernels.grow_region`)."""
+                tolerance: float = 0.0, planar: np.ndarray | None = None) -> np.ndarray:
+    """The floor grown from `seeds` (see `_kernels.grow_region`; a seed anchors its own
+    height)."""
     if tangents is None:
         tangents = np.full(heights.shape + (5,), np.nan, np.float32)
+    if planar is None:
+        planar = np.ones(heights.shape, bool)
     return nk.grow_region(heights, seeds, max_step, empty, max_rise, candidates, tangents,
-                          tolerance)
+                          tolerance, heights, planar)

@@ -253,6 +253,45 @@ def test_a_face_cell_with_both_floors_to_one_side_bridges_the_step_where_both_ar
         assert (grown & lower).any() == (not left_out.any())
 
 
+# Step room 1083's step down, 6.9 cm deep, at its 2nd scan at 0.1 px: the floor candidates
+# (mm) round the cells one laser line left crossing its turned face at a slant, grading
+# from the floor (0) to the floor below (-69) along a chain one cell wide, each window
+# round it holding that line alone (no plane); the floors' cells fit planes. Grown cell
+# by cell within a step, the floor walked down the chain: 40 cells FREE
+SLANTED_LINE_MM = [
+    [NAN, NAN, NAN, 0, -1, 0, 0, 0, -1, 1, 1, NAN, NAN],
+    [NAN, NAN, NAN, NAN, NAN, NAN, 0, 0, 0, -1, 0, 0, 0],
+    [NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, 0, 0, -1, -1],
+    [-69, -69, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN],
+    [-69, -69, -68, -69, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN],
+    [NAN, NAN, -69, -68, -66, -65, NAN, NAN, NAN, NAN, NAN, NAN, NAN],
+    [NAN, NAN, NAN, NAN, NAN, -62, -54, NAN, NAN, NAN, NAN, NAN, NAN],
+    [NAN, NAN, NAN, NAN, NAN, NAN, NAN, -43, -37, NAN, NAN, NAN, NAN],
+    [NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, -33, -28, -21, NAN, NAN],
+    [-69, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, -18, -15, 0],
+    [-68, -69, -70, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, -1, 1],
+    [-70, -68, -69, -69, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN],
+    [NAN, -68, -69, -69, -70, -70, NAN, NAN, NAN, NAN, NAN, NAN, NAN],
+]
+
+
+def test_a_line_down_a_turned_steps_face_leads_the_floor_no_further_than_a_step():
+    heights = (np.array(SLANTED_LINE_MM) / 1000.0).astype(np.float32)
+    floors = (heights > -0.002) | (heights < -0.067)  # the two floors' cells fit planes
+    lower = heights < -0.067
+    seeds = heights > -0.002
+    grown = {}
+    everywhere = np.ones(heights.shape, bool)
+    for label, planar in (("anchored", floors), ("every cell planar", everywhere)):
+        grown[label] = grow_region(heights, seeds, STEP, np.isnan(heights),
+                                   math.tan(MAX_SLOPE) * RES, heights, planar=planar)
+    assert not (grown["anchored"] & lower).any()
+    assert (grown["every cell planar"] & lower).any()  # the growth as it was
+    # the chain's cells within a step of the floor still join it, none beyond
+    chain = ~floors & ~np.isnan(heights)
+    assert np.array_equal(grown["anchored"] & chain, chain & (heights >= -0.05))
+
+
 @settings(max_examples=60, deadline=None)
 @given(degrees=st.floats(0.0, 15.0), direction=st.floats(0.0, 2.0 * math.pi),
        base=st.floats(-5.0, 5.0))

@@ -605,6 +605,13 @@ def test_a_step_down_whose_face_the_lines_cross_sparsely_is_never_free():
     assert hazard_run(4, scene=step_room(1009), pixel_sigma=0.3)["drop_free_any_scan"] == 0
 
 
+def test_a_step_down_a_laser_line_crossed_at_a_slant_is_never_free():
+    # Step room 1083's step down, 6.9 cm deep: at the 2nd scan one laser line crossed its
+    # turned face at a slant, its cells grading from the floor to the floor below along a
+    # chain one cell wide that fits no plane, and the floor grew down it: 40 cells FREE
+    assert hazard_run(2, scene=step_room(1083))["drop_free_any_scan"] == 0
+
+
 @pytest.mark.parametrize("seed", [210, 404])
 def test_a_ramps_raised_end_is_floor_where_only_its_faces_upper_part_was_seen(seed):
     # Mixed rooms 210 and 404, ramps ending 18 cm above the floor: the cells of the raised
