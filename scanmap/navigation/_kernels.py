@@ -753,15 +753,19 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     NaN where it has none) passes within `tolerance` of the other end (a ramp seen from
     afar is cut into islands by gaps two cells wide, and its raised end was an
     obstacle). Jumps are tried only from the few candidates the neighbours alone did not
-    reach (a jump is the same from either end), and onwards. A cell whose own window fits
-    no plane (`planar` False: one laser line's cells, `local_slope`) joins only within
-    max_step of its anchor: the height of the last planar cell on the growth's way to it,
-    or the seed's `seed_floor` (the floor plane's height there) before any. A line that
-    crossed a turned step's face at a slant grades from one floor to the other along a
-    chain one cell wide, each window round it holding that line alone (step room 1083,
-    6.9 cm down: 0, -1.5, ..., -6.6 cm over ten cells, 8 deg), and the growth walked down
-    it onto the lower floor; a ramp's cells fit planes where two lines cross their
-    windows. The anchor is that of the first way the breadth-first growth finds."""
+    reach (a jump is the same from either end), and onwards. Every cell joins only within
+    max_step of the anchor of the cell it is reached from: the height of the last cell on
+    the growth's way whose own window fits a plane (`planar`; one laser line's cells fit
+    none, `local_slope`), or the seed's `seed_floor` (the floor plane's height there)
+    before any. A line that crossed a turned step's face at a slant grades from one floor
+    to the other along a chain one cell wide, each window round it holding that line alone
+    (step room 1083, 6.9 cm down: 0, -1.5, ..., -6.6 cm over ten cells, 8 deg), and the
+    growth walked down it onto the lower floor; a ramp's cells fit planes where two lines
+    cross their windows. A planar cell too joins only within a step of the anchor it is
+    reached from, and then anchors itself: a face cell 2.8 cm down was a seed (an inlier of
+    the floor plane), the growth jumped from it to a face cell 4.5 cm down and on to the
+    floor below, whose cells fit planes (step room 1022, 5.5 cm down, at 0.3 px). The
+    anchor is that of the first way the breadth-first growth finds."""
     ny, nx = heights.shape
     inside = seeds.copy()
     anchor = np.where(seeds, seed_floor, np.nan).astype(np.float32)
@@ -803,16 +807,13 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
 @njit(cache=True, nogil=True, inline="always")
 def _anchored(heights: np.ndarray, planar: np.ndarray, anchor: np.ndarray, max_step: float,
               y: int, x: int, yy: int, xx: int) -> bool:
-    """Whether `grow_region` may go on from the cell (y, x) to (yy, xx) by its anchors (a
-    planar cell anchors itself, another takes the anchor of the cell it came from, and
-    lies within max_step of it); sets the anchor of (yy, xx) if so."""
-    if planar[yy, xx]:
-        anchor[yy, xx] = heights[yy, xx]
-        return True
-    if abs(heights[yy, xx] - anchor[y, x]) <= max_step:
-        anchor[yy, xx] = anchor[y, x]
-        return True
-    return False
+    """Whether `grow_region` may go on from the cell (y, x) to (yy, xx) by its anchors
+    ((yy, xx) lies within max_step of the anchor of (y, x); a planar cell then anchors
+    itself, another takes that anchor); sets the anchor of (yy, xx) if so."""
+    if abs(heights[yy, xx] - anchor[y, x]) > max_step:
+        return False
+    anchor[yy, xx] = heights[yy, xx] if planar[yy, xx] else anchor[y, x]
+    return True
 
 
 @njit(cache=True, nogil=True)

@@ -292,6 +292,83 @@ def test_a_line_down_a_turned_steps_face_leads_the_floor_no_further_than_a_step(
     assert np.array_equal(grown["anchored"] & chain, chain & (heights >= -0.05))
 
 
+# Step room 1022's step down, 5.5 cm deep, at its 6th scan at 0.3 px: the floor
+# candidates (mm) round the step's face (`grow_region`'s heights; steep ones in the
+# candidates only), the cells without a hit, the cells whose windows fit a plane (the
+# floor below's) and the floor plane's seeds (its inliers, the face cell at -28 among
+# them, all on the plane at 0). From the seed at -28 the growth jumped the gaps to -45,
+# within a step of the plane, and on to the floor below, whose cells fit planes and so
+# anchored themselves: 144 cells FREE
+SEED_ON_A_FACE = {
+    "heights": [
+        [NAN, 2, -1, -33, NAN, NAN, 2, 0, NAN],
+        [-2, NAN, NAN, -32, NAN, NAN, 5, NAN, NAN],
+        [1, -28, -28, NAN, NAN, NAN, NAN, NAN, NAN],
+        [-3, -11, NAN, NAN, -60, -55, NAN, NAN, NAN],
+        [-8, -20, NAN, NAN, -45, NAN, NAN, -55, NAN],
+        [-6, NAN, NAN, NAN, NAN, -55, -55, NAN, NAN],
+        [NAN, NAN, NAN, NAN, -56, -57, NAN, NAN, NAN],
+        [NAN, NAN, NAN, -56, -55, NAN, NAN, NAN, -55],
+        [NAN, NAN, -57, -54, NAN, NAN, -55, -56, -55]],
+    "candidates": [
+        [NAN, 2, -1, -33, -23, NAN, 2, 0, NAN],
+        [-2, 2, -31, -32, -26, -6, 5, NAN, NAN],
+        [1, -28, -28, NAN, NAN, NAN, NAN, -50, -6],
+        [-3, -11, NAN, NAN, -60, -55, -38, -12, -48],
+        [-8, -20, NAN, NAN, -45, NAN, NAN, -55, NAN],
+        [-6, NAN, NAN, NAN, NAN, -55, -55, NAN, NAN],
+        [NAN, NAN, NAN, NAN, -56, -57, NAN, NAN, NAN],
+        [NAN, NAN, NAN, -56, -55, NAN, NAN, NAN, -55],
+        [NAN, NAN, -57, -54, NAN, NAN, -55, -56, -55]],
+    "empty": [
+        [1, 0, 0, 0, 0, 1, 0, 0, 1],
+        [0, 0, 0, 0, 0, 0, 0, 1, 1],
+        [0, 0, 0, 1, 1, 1, 1, 0, 0],
+        [0, 0, 1, 1, 0, 0, 0, 0, 0],
+        [0, 0, 1, 1, 0, 1, 1, 0, 0],
+        [0, 1, 1, 1, 1, 0, 0, 1, 1],
+        [1, 1, 1, 1, 0, 0, 1, 1, 1],
+        [1, 1, 1, 0, 0, 1, 1, 1, 0],
+        [1, 1, 0, 0, 1, 1, 0, 0, 0]],
+    "planar": [
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 1, 1, 0, 0, 0],
+        [0, 0, 0, 1, 1, 0, 0, 0, 1],
+        [0, 0, 1, 1, 0, 0, 1, 1, 1]],
+    "seeds": [
+        [0, 1, 1, 0, 0, 0, 1, 1, 0],
+        [1, 0, 0, 0, 0, 0, 1, 0, 0],
+        [1, 1, 1, 0, 0, 0, 0, 0, 0],
+        [1, 1, 0, 0, 0, 0, 0, 0, 0],
+        [1, 1, 0, 0, 0, 0, 0, 0, 0],
+        [1, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0, 0, 0]],
+}
+
+
+def test_a_cell_that_fits_a_plane_joins_only_within_a_step_of_the_anchor_it_is_reached_from():
+    case = {k: np.array(v) for k, v in SEED_ON_A_FACE.items()}
+    heights = (case["heights"] / 1000.0).astype(np.float32)
+    candidates = (case["candidates"] / 1000.0).astype(np.float32)
+    seeds, empty, planar = (case[k].astype(bool) for k in ("seeds", "empty", "planar"))
+    lower = heights < -0.05
+    grown = {label: grow_region(heights, seeds, STEP, empty, math.tan(MAX_SLOPE) * RES,
+                                candidates, planar=mask, seed_floor=np.zeros_like(heights))
+             for label, mask in (("anchored", planar),
+                                 ("every cell planar", np.ones(heights.shape, bool)))}
+    assert not (grown["anchored"] & lower).any()
+    assert (grown["every cell planar"] & lower).any()  # cell by cell it walks down
+    # the face's cells within a step of the floor plane still join it
+    assert grown["anchored"][4, 4] and heights[4, 4] == pytest.approx(-0.045)
+
+
 @settings(max_examples=60, deadline=None)
 @given(degrees=st.floats(0.0, 15.0), direction=st.floats(0.0, 2.0 * math.pi),
        base=st.floats(-5.0, 5.0))

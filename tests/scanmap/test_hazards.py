@@ -612,6 +612,13 @@ def test_a_step_down_a_laser_line_crossed_at_a_slant_is_never_free():
     assert hazard_run(2, scene=step_room(1083))["drop_free_any_scan"] == 0
 
 
+def test_a_step_down_whose_face_holds_a_seed_of_the_floor_plane_is_never_free():
+    # Step room 1022's step down, 5.5 cm deep, at 0.3 px: at the 6th scan a face cell 2.8
+    # cm down was an inlier of the floor plane, and from it the growth jumped to a cell 4.5
+    # cm down and on to the floor below, whose cells fit a plane: 144 cells FREE
+    assert hazard_run(6, scene=step_room(1022), pixel_sigma=0.3)["drop_free_any_scan"] == 0
+
+
 @pytest.mark.parametrize("seed", [210, 404])
 def test_a_ramps_raised_end_is_floor_where_only_its_faces_upper_part_was_seen(seed):
     # Mixed rooms 210 and 404, ramps ending 18 cm above the floor: the cells of the raised
