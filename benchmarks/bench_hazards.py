@@ -2,13 +2,14 @@
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
-        [--mixed N] [--step N] [--ramp N] [--people N] [--rendered N] [--first SEED]
-        [--pixel-sigma PX] [--rendered-people]
+        [--mixed N] [--step N] [--ramp N] [--terrain N] [--people N] [--rendered N]
+        [--first SEED] [--pixel-sigma PX] [--rendered-people]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
-takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N` or `--people N`, on N
-random hazard rooms, mixed rooms, rooms with one step down just deeper than the robot's
-step, rooms with turned ramps near max_slope or rooms with people (`random_rooms`, seeds
+takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N`, `--terrain N` or
+`--people N`, on N random hazard rooms, mixed rooms, rooms with one step down just deeper
+than the robot's step, rooms with turned ramps near max_slope, rooms with floors reached
+by ramps, a dock and a stair, or rooms with people (`random_rooms`, seeds
 from `--first`, 1 by default): a method must hold on scenes it was not built on; with
 `--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px);
 with `--rendered N`, N random and N mixed rooms through the whole pipeline (below).
@@ -94,7 +95,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
-from benchmarks.random_rooms import mixed_room, people_room, ramp_room, random_room, step_room
+from benchmarks.random_rooms import (
+    mixed_room,
+    people_room,
+    ramp_room,
+    random_room,
+    step_room,
+    terrain_room,
+)
 from scanmap.datasets.recordings import ScanSource
 from scanmap.evaluation.ground_truth import (
     EDGE_RASTER,
@@ -705,7 +713,7 @@ def main(argv: list[str] | None = None) -> int:
                         "drop-off and ramp measures, and with people the ghost ones; "
                         "repeatable")
     families = {"random": random_room, "mixed": mixed_room, "step": step_room,
-                "ramp": ramp_room}
+                "ramp": ramp_room, "terrain": terrain_room}
     for family in families:
         parser.add_argument(f"--{family}", type=int, metavar="N",
                             help=f"instead: the drop-off and ramp measures on N {family} "
@@ -743,8 +751,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.rendered_people:
         print(json.dumps({"people (rendered)": people_run(24 if args.quick else None,
                                                           rendered=True)}, indent=1))
-    if not (args.scene or args.random or args.mixed or args.step or args.ramp or args.people
-            or args.rendered or args.rendered_people):
+    if not (args.scene or args.people or args.rendered or args.rendered_people
+            or any(getattr(args, family) for family in families)):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))

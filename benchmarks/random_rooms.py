@@ -33,6 +33,17 @@ to 46 deg, 1-1.6 m beside a path of 15 poses 0.5 m apart (within 0.2 m of the ro
 axis, the heading within 6 deg). Where its face crosses the cells at a slant it leaves
 levels at in-between heights, each within a step of the next, across up to three cells.
 
+`terrain_room(seed)`: floors at other heights the robot may reach, in a room 5 m wide and
+10-12.5 m long, along a path of poses 0.4 m apart (within 0.15 m of the room's axis, the
+heading within 5 deg): on one side a dock 6-30 cm down running 2-4 m beside the path
+(1-1.5 m from the axis out to the wall), then a stair of four steps down, each 12-19 cm
+and 0.28 m deep, and farther on a ramp of 4-12 deg up to a landing 8-20 cm high; on the
+other side a ramp of 4-12 deg down to a sunken floor 10-25 cm down. The landing and the
+sunken floor are floor (reached by their ramps), the dock and the stair drop-offs. The
+sunken floor's rim, where the floor above meets it, is a cliff from that side: a map
+that marks its cells there DROP_OFF counts them false drop-offs against the truth
+raster, which holds one class a cell and calls them floor.
+
 `people_room(seed)`: people pass while walls and furniture stay, in a walled room 7-10 m
 long and 2.8-4 m wide with three cabinets (0.4-0.9 m long, 0.4 m deep, 0.7 m high,
 turned by up to 17 deg) against its long walls, their faces at any offset to the cells;
@@ -219,6 +230,48 @@ def step_room(seed: int) -> Scene:
     poses = [[0.5 * k, round(float(rng.uniform(-0.2, 0.2)), 3),
               round(float(rng.uniform(-0.1, 0.1)), 3)] for k in range(15)]
     return _room(f"step room {seed}", f"step_room({seed})", 9.1, 5.1, 0.8, [], [region],
+                 poses)
+
+
+def terrain_room(seed: int) -> Scene:
+    """The room with floors at other heights of the module docstring drawn from `seed`."""
+    rng = np.random.default_rng(seed)
+    side = 1 if seed % 2 else -1
+    edge, start = float(rng.uniform(1.0, 1.5)), round(float(rng.uniform(0.0, 1.0)), 2)
+    end = round(start + float(rng.uniform(2.0, 3.0)), 2)
+    regions = [{"center": [round(0.5 * (start + end), 3), round(side * 0.5 * (edge + 2.5), 3)],
+                "size": [round(end - start, 3), round(2.5 - edge, 3)], "name": "dock",
+                "height": round(-float(rng.uniform(0.06, 0.3)), 3)}]
+    stair_x, stair_y = end + round(float(rng.uniform(0.3, 0.6)), 2), side * rng.uniform(1.2, 1.5)
+    riser = float(rng.uniform(0.12, 0.19))
+    regions += [{"center": [round(stair_x + 0.14 + 0.28 * k, 3), round(stair_y, 3)],
+                 "size": [0.28, 0.9], "height": round(-riser * (k + 1), 3),
+                 "name": f"stair {k + 1}"} for k in range(4)]
+    down_x = round(float(rng.uniform(4.5, 5.0)), 2)  # the ramp down, and the sunken floor
+    gradient = math.tan(math.radians(rng.uniform(4.0, 12.0)))
+    length = round(float(rng.uniform(0.1, 0.25)) / gradient, 2)
+    middle = round(0.5 * gradient * length, 4) + 3e-4  # rounded up: never above 0
+    y = round(-side * float(rng.uniform(1.3, 1.6)), 3)
+    regions += [{"center": [round(down_x + 0.5 * length, 3), y], "size": [length, 0.9],
+                 "height": -middle, "gradient": [-round(gradient, 5), 0.0],
+                 "name": "ramp down"},
+                {"center": [round(down_x + length + 0.6, 3), y], "size": [1.2, 1.2],
+                 "height": round(-2.0 * middle, 4), "name": "sunken floor"}]
+    up_x = round(down_x + length + 2.2, 2)  # the ramp up, and the landing
+    gradient = math.tan(math.radians(rng.uniform(4.0, 12.0)))
+    length = round(float(rng.uniform(0.08, 0.2)) / gradient, 2)
+    middle = round(0.5 * gradient * length, 4) + 3e-4  # rounded up: never below 0
+    y = round(side * float(rng.uniform(1.2, 1.5)), 3)
+    regions += [{"center": [round(up_x + 0.5 * length, 3), y], "size": [length, 0.8],
+                 "height": middle, "gradient": [round(gradient, 5), 0.0], "name": "ramp up"},
+                {"center": [round(up_x + length + 0.4, 3), y], "size": [0.8, 0.8],
+                 "height": round(2.0 * middle, 4), "name": "landing"}]
+    room_length = up_x + length + 2.5
+    poses = [[round(0.4 * k, 3), round(float(rng.uniform(-0.15, 0.15)), 3),
+              round(float(rng.uniform(-0.08, 0.08)), 3)]
+             for k in range(int((room_length - 1.5) / 0.4))]
+    return _room(f"terrain room {seed}", f"terrain_room({seed})", round(room_length + 1.05, 2),
+                 5.1, 0.8, [], [region | {"color": [130, 130, 130]} for region in regions],
                  poses)
 
 

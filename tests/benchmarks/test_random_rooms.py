@@ -1,6 +1,6 @@
 """Random hazard rooms (`benchmarks.random_rooms`): scenes drawn afresh from a seed, and
-the hazards benchmark's `--random`, `--mixed`, `--step`, `--ramp` and `--people` measures
-on them."""
+the hazards benchmark's `--random`, `--mixed`, `--step`, `--ramp`, `--terrain` and
+`--people` measures on them."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from benchmarks.random_rooms import (
     ramp_room,
     random_room,
     step_room,
+    terrain_room,
 )
 from scanmap.navigation.floor import FloorConfig, RobotShape
 from scanmap_driver.sim import RASTER_DROP_OFF, RASTER_FLOOR, Scene, truth_raster
@@ -177,3 +178,28 @@ def test_the_benchmark_measures_step_rooms_from_a_first_seed(capsys):
     assert set(out) == {"step_room(7)", "worst"}
     assert out["worst"]["rooms"] == 1
     assert out["worst"]["drop_free"] == out["step_room(7)"]["drop_free"]
+
+
+def test_a_terrain_rooms_floors_reached_by_ramps_are_floor_and_its_dock_and_stair_drop_offs():
+    for seed in range(1, 7):
+        room = terrain_room(seed)
+        assert room.to_dict() == terrain_room(seed).to_dict()
+        raster = truth_raster(room)
+        regions = {region.name: region for region in room.floor_regions}
+        for name, kind in (("sunken floor", RASTER_FLOOR), ("landing", RASTER_FLOOR),
+                           ("ramp down", RASTER_FLOOR), ("ramp up", RASTER_FLOOR),
+                           ("dock", RASTER_DROP_OFF), ("stair 4", RASTER_DROP_OFF)):
+            centre = np.mean(regions[name].corners, axis=0)
+            assert raster.class_at(centre[None])[0] == kind, (seed, name)
+        assert regions["sunken floor"].height < -0.1 + 1e-3  # deeper than a step
+        assert regions["landing"].height > 0.08 - 1e-3
+        assert regions["ramp down"].height_at(*regions["ramp down"].corners.T).max() <= 0.0
+        assert_path_clear(room, seed)
+
+
+def test_the_benchmark_measures_terrain_rooms(capsys):
+    assert main(["--terrain", "1", "--first", "3", "--quick"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"terrain_room(3)", "worst"}
+    assert out["terrain_room(3)"]["drop_free"] == 0
+    assert out["terrain_room(3)"]["drop_found"] > 0
