@@ -95,14 +95,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
-from benchmarks.random_rooms import (
-    mixed_room,
-    people_room,
-    ramp_room,
-    random_room,
-    step_room,
-    terrain_room,
-)
+from benchmarks.random_rooms import FAMILIES, mixed_room, people_room, random_room
 from scanmap.datasets.recordings import ScanSource
 from scanmap.evaluation.ground_truth import (
     EDGE_RASTER,
@@ -712,9 +705,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="measure this scene file (or built-in scene) instead: the "
                         "drop-off and ramp measures, and with people the ghost ones; "
                         "repeatable")
-    families = {"random": random_room, "mixed": mixed_room, "step": step_room,
-                "ramp": ramp_room, "terrain": terrain_room}
-    for family in families:
+    for family in FAMILIES:
         parser.add_argument(f"--{family}", type=int, metavar="N",
                             help=f"instead: the drop-off and ramp measures on N {family} "
                             "rooms (benchmarks.random_rooms), each and the worst")
@@ -735,7 +726,7 @@ def main(argv: list[str] | None = None) -> int:
                         "no rule was tried on")
     args = parser.parse_args(argv)
     scans = 8 if args.quick else None
-    for family, draw in families.items():
+    for family, draw in FAMILIES.items():
         count = getattr(args, family) or 0
         rooms = {f"{family}_room({seed})": hazard_run(scans, scene=draw(seed),
                                                       pixel_sigma=args.pixel_sigma)
@@ -752,7 +743,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"people (rendered)": people_run(24 if args.quick else None,
                                                           rendered=True)}, indent=1))
     if not (args.scene or args.people or args.rendered or args.rendered_people
-            or any(getattr(args, family) for family in families)):
+            or any(getattr(args, family) for family in FAMILIES)):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
         print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))

@@ -310,3 +310,9 @@ def people_room(seed: int) -> Scene:
     poses = [[round(step * k, 3), 0.0, 0.0] for k in range(PEOPLE_SCANS)]
     return _room(f"people room {seed}", f"people_room({seed})", length, width, 0.8, cabinets,
                  [], poses, people)
+
+
+# the drawn rooms' families by `bench_hazards`' flag (`--random N`, ...): the drop-off and
+# ramp measures
+FAMILIES = {"random": random_room, "mixed": mixed_room, "step": step_room, "ramp": ramp_room,
+            "terrain": terrain_room}

@@ -320,44 +320,21 @@ SEED_ON_A_FACE = {
         [NAN, NAN, NAN, NAN, -56, -57, NAN, NAN, NAN],
         [NAN, NAN, NAN, -56, -55, NAN, NAN, NAN, -55],
         [NAN, NAN, -57, -54, NAN, NAN, -55, -56, -55]],
-    "empty": [
-        [1, 0, 0, 0, 0, 1, 0, 0, 1],
-        [0, 0, 0, 0, 0, 0, 0, 1, 1],
-        [0, 0, 0, 1, 1, 1, 1, 0, 0],
-        [0, 0, 1, 1, 0, 0, 0, 0, 0],
-        [0, 0, 1, 1, 0, 1, 1, 0, 0],
-        [0, 1, 1, 1, 1, 0, 0, 1, 1],
-        [1, 1, 1, 1, 0, 0, 1, 1, 1],
-        [1, 1, 1, 0, 0, 1, 1, 1, 0],
-        [1, 1, 0, 0, 1, 1, 0, 0, 0]],
-    "planar": [
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 1, 1, 0, 0, 0],
-        [0, 0, 0, 1, 1, 0, 0, 0, 1],
-        [0, 0, 1, 1, 0, 0, 1, 1, 1]],
-    "seeds": [
-        [0, 1, 1, 0, 0, 0, 1, 1, 0],
-        [1, 0, 0, 0, 0, 0, 1, 0, 0],
-        [1, 1, 1, 0, 0, 0, 0, 0, 0],
-        [1, 1, 0, 0, 0, 0, 0, 0, 0],
-        [1, 1, 0, 0, 0, 0, 0, 0, 0],
-        [1, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0]],
+    "empty": ["100001001", "000000011", "000111100", "001100000", "001101100",
+              "011110011", "111100111", "111001110", "110011000"],
+    "planar": ["000000000", "000000000", "000000000", "000000000", "000000000",
+               "000000000", "000011000", "000110001", "001100111"],
+    "seeds": ["011000110", "100000100", "111000000", "110000000", "110000000",
+              "100000000", "000000000", "000000000", "000000000"],
 }
 
 
 def test_a_cell_that_fits_a_plane_joins_only_within_a_step_of_the_anchor_it_is_reached_from():
-    case = {k: np.array(v) for k, v in SEED_ON_A_FACE.items()}
-    heights = (case["heights"] / 1000.0).astype(np.float32)
-    candidates = (case["candidates"] / 1000.0).astype(np.float32)
-    seeds, empty, planar = (case[k].astype(bool) for k in ("seeds", "empty", "planar"))
+    case = SEED_ON_A_FACE
+    heights, candidates = (np.array(case[k], np.float32) / 1000.0
+                           for k in ("heights", "candidates"))
+    seeds, empty, planar = (np.array([[c == "1" for c in row] for row in case[k]])
+                            for k in ("seeds", "empty", "planar"))
     lower = heights < -0.05
     grown = {label: grow_region(heights, seeds, STEP, empty, math.tan(MAX_SLOPE) * RES,
                                 candidates, planar=mask, seed_floor=np.zeros_like(heights))
