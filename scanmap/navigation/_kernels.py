@@ -756,19 +756,21 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     reach (a jump is the same from either end), and onwards. Every cell joins only within
     max_step of the anchor of the cell it is reached from: the height of the last cell on
     the growth's way whose own window fits a plane (`planar`; one laser line's cells fit
-    none, `local_slope`), or the seed's `seed_floor` (the floor plane's height there)
-    before any. A line that crossed a turned step's face at a slant grades from one floor
-    to the other along a chain one cell wide, each window round it holding that line alone
-    (step room 1083, 6.9 cm down: 0, -1.5, ..., -6.6 cm over ten cells, 8 deg), and the
-    growth walked down it onto the lower floor; a ramp's cells fit planes where two lines
-    cross their windows. A planar cell too joins only within a step of the anchor it is
-    reached from, and then anchors itself: a face cell 2.8 cm down was a seed (an inlier of
-    the floor plane), the growth jumped from it to a face cell 4.5 cm down and on to the
-    floor below, whose cells fit planes (step room 1022, 5.5 cm down, at 0.3 px). The
-    anchor is that of the first way the breadth-first growth finds."""
+    none, `local_slope`), a seed's own where it fits one, else the seed's `seed_floor`
+    (the floor plane's height there: a seed lies up to the plane's tolerance off it, and
+    a ramp's foot anchored at the plane let a robot with a 3 cm step climb no ramp). A
+    line that crossed a turned step's face at a slant grades from one floor to the other
+    along a chain one cell wide, each window round it holding that line alone (step room
+    1083, 6.9 cm down: 0, -1.5, ..., -6.6 cm over ten cells, 8 deg), and the growth
+    walked down it onto the lower floor; a ramp's cells fit planes where two lines cross
+    their windows. A planar cell too joins only within a step of the anchor it is reached
+    from, and then anchors itself: a face cell 2.8 cm down was a seed (an inlier of the
+    floor plane, fitting none), the growth jumped from it to a face cell 4.5 cm down and
+    on to the floor below, whose cells fit planes (step room 1022, 5.5 cm down, at 0.3
+    px). The anchor is that of the first way the breadth-first growth finds."""
     ny, nx = heights.shape
     inside = seeds.copy()
-    anchor = np.where(seeds, seed_floor, np.nan).astype(np.float32)
+    anchor = np.where(seeds, np.where(planar, heights, seed_floor), np.nan).astype(np.float32)
     queue = np.empty(ny * nx, np.int64)
     tail = 0
     for y in range(ny):

@@ -347,6 +347,24 @@ def test_a_cell_that_fits_a_plane_joins_only_within_a_step_of_the_anchor_it_is_r
 
 
 @settings(max_examples=60, deadline=None)
+@given(degrees=st.floats(0.0, 14.5), step=st.floats(0.03, 0.12))
+def test_a_ramp_whose_foot_holds_seeds_above_the_floor_plane_is_climbed_whatever_the_step(
+        degrees, step):
+    # The floor plane's inliers (within plane_tolerance, 3 cm) seed the growth, a ramp's
+    # foot among them; each anchored at the plane's height, a robot with a 3 cm step
+    # climbed no ramp past its seeds (ramp F1 0.31-0.55 in random rooms 1-6). A seed whose
+    # window fits a plane anchors its own height, as any planar cell does. (A step under a
+    # ramp's rise across two cells, 2.6 cm at 14.5 deg, stops it at `_spans_no_step`.)
+    heights = np.tile(np.arange(24) * RES * math.tan(math.radians(degrees)),
+                      (5, 1)).astype(np.float32)
+    seeds = heights <= FloorConfig().plane_tolerance
+    grown = grow_region(heights, seeds, step, np.zeros(heights.shape, bool),
+                        math.tan(MAX_SLOPE) * RES, heights,
+                        seed_floor=np.zeros_like(heights))
+    assert grown.all()
+
+
+@settings(max_examples=60, deadline=None)
 @given(degrees=st.floats(0.0, 15.0), direction=st.floats(0.0, 2.0 * math.pi),
        base=st.floats(-5.0, 5.0))
 def test_no_cell_of_a_ramp_within_max_slope_bridges_a_step(degrees, direction, base):

@@ -23,7 +23,7 @@ from benchmarks.bench_hazards import (
 from benchmarks.random_rooms import mixed_room, ramp_room, random_room, step_room
 from scanmap.grid import _kernels as gk
 from scanmap.navigation import DROP_OFF, FREE, LETHAL, OBSTACLE, UNKNOWN, inflate, morphology
-from scanmap.navigation.floor import FloorConfig
+from scanmap.navigation.floor import FloorConfig, RobotShape
 from scanmap.navigation.obstacles import ObstacleMap, ObstacleSnapshot, QueryStatus
 from scanmap_driver.sim import RASTER_DROP_OFF, RASTER_FLOOR, Scene, builtin_scene, truth_raster
 
@@ -617,6 +617,16 @@ def test_a_step_down_whose_face_holds_a_seed_of_the_floor_plane_is_never_free():
     # cm down was an inlier of the floor plane, and from it the growth jumped to a cell 4.5
     # cm down and on to the floor below, whose cells fit a plane: 144 cells FREE
     assert hazard_run(6, scene=step_room(1022), pixel_sigma=0.3)["drop_free_any_scan"] == 0
+
+
+def test_a_robot_with_a_lower_step_and_a_steeper_slope_still_finds_the_ramps_and_drops():
+    # The rules read the robot description: with a 3 cm step (the floor plane's seed
+    # tolerance) and 20 deg, seeds anchored at the plane's height let the floor climb no
+    # ramp (traversable F1 0.37 here; 0.992 before and after)
+    robot, params = RobotShape(step_height=0.03), FloorConfig(max_slope=math.radians(20.0))
+    measures = hazard_run(scene=random_room(1), robot=robot, params=params)
+    assert measures["ramp_traversable_f1"] >= 0.97
+    assert measures["drop_free_any_scan"] == 0
 
 
 @pytest.mark.parametrize("seed", [210, 404])
