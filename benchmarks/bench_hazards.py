@@ -3,7 +3,8 @@ and glass surfaces (the built-in `hazards` scene) and people walking past (`peop
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
         [--mixed N] [--step N] [--ramp N] [--terrain N] [--people N] [--rendered N]
-        [--first SEED] [--pixel-sigma PX] [--rendered-people]
+        [--first SEED] [--pixel-sigma PX] [--step-height M] [--max-slope DEG]
+        [--rendered-people]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
 takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N`, `--terrain N` or
@@ -12,6 +13,8 @@ than the robot's step, rooms with turned ramps near max_slope, rooms with floors
 by ramps, a dock and a stair, or rooms with people (`random_rooms`, seeds
 from `--first`, 1 by default): a method must hold on scenes it was not built on; with
 `--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px);
+with `--step-height` and `--max-slope`, those rooms and scenes measured for a robot that
+climbs that step and that slope (the map's rules and the truth both read them);
 with `--rendered N`, N random and N mixed rooms through the whole pipeline (below).
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
@@ -177,16 +180,17 @@ def fuse(grid: HeightGrid, ideal: IdealScan) -> None:
 
 
 def mapped(scene: Scene, scans: int | None = None, seed: int = 0,
-           params: FloorConfig = PARAMS, pixel_sigma: float | None = None) -> Iterator[Step]:
-    """Map the scene scan by scan, segmenting its window after each; `pixel_sigma`: the
-    laser peak's noise (px), the scanner model's by default."""
+           params: FloorConfig = PARAMS, pixel_sigma: float | None = None,
+           robot: RobotShape = ROBOT) -> Iterator[Step]:
+    """Map the scene scan by scan, segmenting its window after each for `robot`;
+    `pixel_sigma`: the laser peak's noise (px), the scanner model's by default."""
     grid = HeightGrid(GridConfig(extent=50.0))
     bounds = scene_window(scene)
     for index, ideal in enumerate(ideal_scans(scene, seed=seed, scans=scans,
                                               pixel_sigma=pixel_sigma)):
         fuse(grid, ideal)
         layers = grid.layers(bounds)
-        yield Step(index, ideal, layers, segment(layers, ROBOT, params))
+        yield Step(index, ideal, layers, segment(layers, robot, params))
 
 
 def rendered_steps(scene: Scene, scans: int | None = None, seed: int = 0) -> Iterator[Step]:
@@ -262,21 +266,22 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
     floor = seg.is_floor
     if traversable:
         floor = floor & (seg.state == FREE)
-        cells &= ~face_cells(scene, seg, np.eye(4), cells, ROBOT.step_height)
+        cells &= ~face_cells(scene, seg, np.eye(4), cells, seg.robot.step_height)
     return f1_score(floor[cells], truth[cells] == TRUE_FLOOR)
 
 
 def hazard_run(scans: int | None = None, seed: int = 0, scene: Scene | None = None,
-               pixel_sigma: float | None = None) -> dict[str, float]:
+               pixel_sigma: float | None = None, robot: RobotShape = ROBOT,
+               params: FloorConfig = PARAMS) -> dict[str, float]:
     """The drop-off and ramp measures on a scene with hazards (the built-in `hazards`)
     after its last scan, the worst counts of free and of false drop-off cells, the worst
     edge error and the least share of the edge within one cell over all scans (scans with
-    `mapped`'s `pixel_sigma`)."""
+    `mapped`'s `pixel_sigma`), for `robot` with `params` (its step and slope the truth's)."""
     scene = scene or builtin_scene("hazards")
-    raster, fine = (truth_raster(scene, resolution, ROBOT.step_height, ROBOT.height,
-                                 max_slope=PARAMS.max_slope) for resolution in (CELL, EDGE_RASTER))
+    raster, fine = (truth_raster(scene, resolution, robot.step_height, robot.height,
+                                 max_slope=params.max_slope) for resolution in (CELL, EDGE_RASTER))
     worst, edge_worst, within_worst, false_worst = 0, 0.0, 1.0, 0
-    for step in mapped(scene, scans, seed, pixel_sigma=pixel_sigma):
+    for step in mapped(scene, scans, seed, params, pixel_sigma, robot):
         truth = truth_classes(step.seg, raster)
         measures = drop_measures(step.seg, truth, fine)
         worst = max(worst, measures["drop_free"])
@@ -590,11 +595,12 @@ def measure(quick: bool) -> dict[str, dict[str, float]]:
             "timing_20k": time_per_scan(4 if quick else 8, points=20_000)}
 
 
-def scene_measures(scene: Scene, scans: int | None = None) -> dict[str, dict[str, float]]:
+def scene_measures(scene: Scene, scans: int | None = None, robot: RobotShape = ROBOT,
+                   params: FloorConfig = PARAMS) -> dict[str, dict[str, float]]:
     """The measures of `measure` on one scene, for hazard scenes other than the built-in
-    ones: drop-offs and ramps (`hazard_run`), and ghosts and walls where it has people
-    (`people_run`)."""
-    out = {"hazards": hazard_run(scans, scene=scene)}
+    ones: drop-offs and ramps (`hazard_run`, for `robot` with `params`), and ghosts and
+    walls where it has people (`people_run`)."""
+    out = {"hazards": hazard_run(scans, scene=scene, robot=robot, params=params)}
     if scene.people:
         out["people"] = people_run(scans, scene=scene)
     return out
@@ -724,12 +730,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first", type=int, default=1, metavar="SEED",
                         help="the rooms' first seed (default 1): fresh seeds are rooms "
                         "no rule was tried on")
+    parser.add_argument("--step-height", type=float, default=ROBOT.step_height, metavar="M",
+                        help="the robot's step (m) for the drop-off and ramp measures of "
+                        f"the rooms and --scene (default {ROBOT.step_height})")
+    parser.add_argument("--max-slope", type=float, metavar="DEG",
+                        default=round(math.degrees(PARAMS.max_slope), 6),
+                        help="the robot's steepest ramp (deg) for the same (default "
+                        f"{math.degrees(PARAMS.max_slope):g})")
     args = parser.parse_args(argv)
+    robot = replace(ROBOT, step_height=args.step_height)
+    params = replace(PARAMS, max_slope=math.radians(args.max_slope))
     scans = 8 if args.quick else None
     for family, draw in FAMILIES.items():
         count = getattr(args, family) or 0
         rooms = {f"{family}_room({seed})": hazard_run(scans, scene=draw(seed),
-                                                      pixel_sigma=args.pixel_sigma)
+                                                      pixel_sigma=args.pixel_sigma,
+                                                      robot=robot, params=params)
                  for seed in range(args.first, args.first + count)}
         if rooms:
             print(json.dumps(rooms | {"worst": rooms_summary(list(rooms.values()))},
@@ -746,7 +762,8 @@ def main(argv: list[str] | None = None) -> int:
             or any(getattr(args, family) for family in FAMILIES)):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:
-        print(json.dumps({text: scene_measures(resolve_scene(text), scans)}, indent=1))
+        print(json.dumps({text: scene_measures(resolve_scene(text), scans, robot, params)},
+                         indent=1))
     return 0
 
 
