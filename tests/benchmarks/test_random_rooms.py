@@ -203,3 +203,13 @@ def test_the_benchmark_measures_terrain_rooms(capsys):
     assert set(out) == {"terrain_room(3)", "worst"}
     assert out["terrain_room(3)"]["drop_free"] == 0
     assert out["terrain_room(3)"]["drop_found"] > 0
+
+
+def test_the_benchmark_measures_the_rooms_for_another_robot(capsys):
+    # a robot that climbs 25 cm steps finds fewer drop-offs in the same room: the truth
+    # and the map both read the flags
+    counts = []
+    for flags in ([], ["--step-height", "0.25", "--max-slope", "20"]):
+        assert main(["--random", "1", "--first", "2", "--quick", *flags]) == 0
+        counts.append(json.loads(capsys.readouterr().out)["random_room(2)"]["drop_cells"])
+    assert 0 < counts[1] < counts[0]
