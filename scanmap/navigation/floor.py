@@ -154,6 +154,9 @@ RANSAC_CONFIDENCE = 1.0 - 1e-9
 # a ramp (a floor's cells at 0.3 px of laser peak noise: 1.5 deg at the 90th percentile;
 # the cells a step's face crosses, 4-17 deg)
 LEVEL_SLOPE = math.radians(5.0)
+# how far across (m) a turned step's face leaves levels at in-between heights: up to three
+# cells and a half (noise, the face at a slant to the cells), the default robot's reach
+FACE_SPAN = 0.17
 
 
 @dataclass(frozen=True)
@@ -759,9 +762,13 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:
     """How far apart (cells) `bridged_steps` looks for a step's two sides: as far as a
     ramp at `max_slope` rises nine tenths of a step, a tenth left for the floor's noise
-    (0.17 m, 3.4 cells at the defaults), at least two cells."""
+    (0.17 m, 3.4 cells at the defaults), at least two cells, and no farther than
+    FACE_SPAN: a face's in-between levels lie across a few cells whatever the robot, and
+    farther out a raised ramp's cells lie more than a step above the floor beside it (a
+    robot with a 10 cm step and 10 deg looked 0.51 m across: a third of a 7.7 deg ramp's
+    cells bridges)."""
     run = 0.9 * robot.step_height / max(math.tan(params.max_slope), 1e-9)
-    return max(run / resolution, 2.0)
+    return max(min(run, FACE_SPAN) / resolution, 2.0)
 
 
 def _bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach: float

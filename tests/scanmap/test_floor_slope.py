@@ -377,6 +377,29 @@ def test_no_cell_of_a_ramp_within_max_slope_bridges_a_step(degrees, direction, b
     assert not floor._bridged_steps(heights, level, STEP, REACH_OF_A_STEP).any()
 
 
+def test_a_raised_ramps_cells_are_no_bridges_for_a_robot_with_a_high_step_and_a_low_slope():
+    # A 7.7 deg ramp rising 13 cm along x, the floor beside it across y: for a robot with
+    # a 10 cm step and 10 deg, "as far as a ramp at max_slope rises 0.9 of a step" is
+    # 0.51 m, and the ramp's upper cells lay within a step of both its top and the floor
+    # beside, more than a step apart: bridges, not floor (ramp F1 0.75 in random room 1)
+    robot, params = RobotShape(step_height=0.1), FloorConfig(max_slope=math.radians(10.0))
+    reach = floor._bridge_reach(robot, params, RES)
+    assert reach == pytest.approx(floor.FACE_SPAN / RES)
+    assert floor._bridge_reach(RobotShape(), FloorConfig(), RES) < reach  # the default's
+    heights = np.zeros((24, 28), np.float32)
+    heights[8:] = np.arange(28) * RES * math.tan(math.radians(7.7))
+    level = np.zeros(heights.shape, bool)
+    level[:8] = True
+    bridges = floor._bridged_steps(heights, level, robot.step_height, reach)
+    # next to its side face, where that rises higher than a step, a cell or two may be
+    # (as for the default robot); past them none (0.51 m across: 73 cells, rows 8-17)
+    assert not bridges[10:].any() and bridges.sum() <= 10
+    # a step of 12 cm beside the same floor is bridged still, a face cell between
+    heights[8:] = 0.12
+    heights[8, :] = 0.06
+    assert floor._bridged_steps(heights, level, robot.step_height, reach)[8].all()
+
+
 @settings(max_examples=40, deadline=None)
 @given(angle=st.floats(0.0, math.pi), seed=st.integers(0, 2**32 - 1))
 def test_one_laser_lines_hits_across_flat_floor_are_not_steep(angle, seed):

@@ -619,11 +619,14 @@ def test_a_step_down_whose_face_holds_a_seed_of_the_floor_plane_is_never_free():
     assert hazard_run(6, scene=step_room(1022), pixel_sigma=0.3)["drop_free_any_scan"] == 0
 
 
-def test_a_robot_with_a_lower_step_and_a_steeper_slope_still_finds_the_ramps_and_drops():
-    # The rules read the robot description: with a 3 cm step (the floor plane's seed
+@pytest.mark.parametrize("step, degrees", [(0.03, 20.0), (0.1, 10.0)])
+def test_another_robot_description_still_finds_the_ramps_and_the_drop_offs(step, degrees):
+    # The rules read the robot description. With a 3 cm step (the floor plane's seed
     # tolerance) and 20 deg, seeds anchored at the plane's height let the floor climb no
-    # ramp (traversable F1 0.37 here; 0.992 before and after)
-    robot, params = RobotShape(step_height=0.03), FloorConfig(max_slope=math.radians(20.0))
+    # ramp (traversable F1 0.37 here, 0.992 before and after); with a 10 cm step and 10
+    # deg, `bridged_steps` looked 0.51 m across and took a third of the 7.7 deg ramp for
+    # a step's face (0.75, now 1.0)
+    robot, params = RobotShape(step_height=step), FloorConfig(max_slope=math.radians(degrees))
     measures = hazard_run(scene=random_room(1), robot=robot, params=params)
     assert measures["ramp_traversable_f1"] >= 0.97
     assert measures["drop_free_any_scan"] == 0
