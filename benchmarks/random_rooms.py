@@ -34,8 +34,8 @@ axis, the heading within 6 deg). Where its face crosses the cells at a slant it 
 levels at in-between heights, each within a step of the next, across up to three cells.
 
 `terrain_room(seed)`: floors at other heights the robot may reach, in a room 5 m wide and
-10-12.5 m long, along a path of poses 0.4 m apart (within 0.15 m of the room's axis, the
-heading within 5 deg): on one side a dock 6-30 cm down running 2-4 m beside the path
+11.5-16 m long, along a path of poses 0.4 m apart (within 0.15 m of the room's axis, the
+heading within 5 deg): on one side a dock 6-30 cm down running 2-3 m beside the path
 (1-1.5 m from the axis out to the wall), then a stair of four steps down, each 12-19 cm
 and 0.28 m deep, and farther on a ramp of 4-12 deg up to a landing 8-20 cm high; on the
 other side a ramp of 4-12 deg down to a sunken floor 10-25 cm down. The landing and the
