@@ -233,6 +233,25 @@ def step_room(seed: int) -> Scene:
                  poses)
 
 
+def _ramp_to_floor(rng: np.random.Generator, x: float, side: int, down: bool,
+                   rise: tuple[float, float], across: tuple[float, float], width: float,
+                   floor: float, names: tuple[str, str]) -> tuple[list[dict], float]:
+    """A ramp of 4-12 deg along x from the floor at `x`, `down` or up, to a square floor
+    `floor` m on a side beyond it, `rise` m (drawn) below or above the floor, its centre
+    `across` m (drawn) from the room's axis on `side`; the two regions and the ramp's
+    length."""
+    gradient = math.tan(math.radians(rng.uniform(4.0, 12.0)))
+    sign = 1.0 if down else -1.0
+    length = round(float(rng.uniform(*rise)) / gradient, 2)
+    middle = round(0.5 * gradient * length, 4) + 3e-4  # rounded away from the floor
+    y = round(side * float(rng.uniform(*across)), 3)
+    return [{"center": [round(x + 0.5 * length, 3), y], "size": [length, width],
+             "height": -sign * middle, "gradient": [-sign * round(gradient, 5), 0.0],
+             "name": names[0]},
+            {"center": [round(x + length + 0.5 * floor, 3), y], "size": [floor, floor],
+             "height": round(-sign * 2.0 * middle, 4), "name": names[1]}], length
+
+
 def terrain_room(seed: int) -> Scene:
     """The room with floors at other heights of the module docstring drawn from `seed`."""
     rng = np.random.default_rng(seed)
@@ -247,25 +266,13 @@ def terrain_room(seed: int) -> Scene:
     regions += [{"center": [round(stair_x + 0.14 + 0.28 * k, 3), round(stair_y, 3)],
                  "size": [0.28, 0.9], "height": round(-riser * (k + 1), 3),
                  "name": f"stair {k + 1}"} for k in range(4)]
-    down_x = round(float(rng.uniform(4.5, 5.0)), 2)  # the ramp down, and the sunken floor
-    gradient = math.tan(math.radians(rng.uniform(4.0, 12.0)))
-    length = round(float(rng.uniform(0.1, 0.25)) / gradient, 2)
-    middle = round(0.5 * gradient * length, 4) + 3e-4  # rounded up: never above 0
-    y = round(-side * float(rng.uniform(1.3, 1.6)), 3)
-    regions += [{"center": [round(down_x + 0.5 * length, 3), y], "size": [length, 0.9],
-                 "height": -middle, "gradient": [-round(gradient, 5), 0.0],
-                 "name": "ramp down"},
-                {"center": [round(down_x + length + 0.6, 3), y], "size": [1.2, 1.2],
-                 "height": round(-2.0 * middle, 4), "name": "sunken floor"}]
-    up_x = round(down_x + length + 2.2, 2)  # the ramp up, and the landing
-    gradient = math.tan(math.radians(rng.uniform(4.0, 12.0)))
-    length = round(float(rng.uniform(0.08, 0.2)) / gradient, 2)
-    middle = round(0.5 * gradient * length, 4) + 3e-4  # rounded up: never below 0
-    y = round(side * float(rng.uniform(1.2, 1.5)), 3)
-    regions += [{"center": [round(up_x + 0.5 * length, 3), y], "size": [length, 0.8],
-                 "height": middle, "gradient": [round(gradient, 5), 0.0], "name": "ramp up"},
-                {"center": [round(up_x + length + 0.4, 3), y], "size": [0.8, 0.8],
-                 "height": round(2.0 * middle, 4), "name": "landing"}]
+    down_x = round(float(rng.uniform(4.5, 5.0)), 2)
+    down, length = _ramp_to_floor(rng, down_x, -side, True, (0.1, 0.25), (1.3, 1.6), 0.9,
+                                  1.2, ("ramp down", "sunken floor"))
+    up_x = round(down_x + length + 2.2, 2)
+    up, length = _ramp_to_floor(rng, up_x, side, False, (0.08, 0.2), (1.2, 1.5), 0.8, 0.8,
+                                ("ramp up", "landing"))
+    regions += down + up
     room_length = up_x + length + 2.5
     poses = [[round(0.4 * k, 3), round(float(rng.uniform(-0.15, 0.15)), 3),
               round(float(rng.uniform(-0.08, 0.08)), 3)]
