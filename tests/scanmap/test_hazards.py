@@ -605,6 +605,16 @@ def test_a_step_down_whose_face_the_lines_cross_sparsely_is_never_free():
     assert hazard_run(4, scene=step_room(1009), pixel_sigma=0.3)["drop_free_any_scan"] == 0
 
 
+@pytest.mark.parametrize("seed, scans", [(2027, 12), (1169, 9)])
+def test_a_cell_below_a_step_read_within_a_step_of_its_edge_is_never_free(seed, scans):
+    # Step rooms 2027 and 1169, 5.5 and 6.1 cm down, at 0.3 px: a cell of the floor below
+    # read 5 mm high by the noise, and a cell 5.6 cm down beside two face cells the floor
+    # had taken, lay within a step of the floor beside them; bridges between the step's
+    # sides, they joined that floor (`touching_floor`), FREE from the 12th scan on and
+    # from the 9th for five scans
+    assert hazard_run(scans, scene=step_room(seed), pixel_sigma=0.3)["drop_free_any_scan"] == 0
+
+
 def test_a_step_down_a_laser_line_crossed_at_a_slant_is_never_free():
     # Step room 1083's step down, 6.9 cm deep: at the 2nd scan one laser line crossed its
     # turned face at a slant, its cells grading from the floor to the floor below along a
