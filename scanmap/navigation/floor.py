@@ -561,6 +561,11 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     edges = nk.step_edges(layers.levels, layers.nlev, cand, is_floor, robot.step_height,
                           params.clearance, params.plane_tolerance)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
+    rim_y, rim_x, rim_top = _rims(layers.levels, layers.nlev, edges, is_floor, floor_height,
+                                  robot.step_height)
+    edges[rim_y, rim_x] = False
+    is_floor[rim_y, rim_x] = True
+    floor_height[rim_y, rim_x] = rim_top
     beyond = None
     if carried.any():
         beyond = _carry(floor_height, carried, ~is_floor, params.fill_radius, res, margins)
@@ -761,6 +766,32 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
                         slope=np.where(is_floor, slope, np.nan).astype(np.float32)), beyond
+
+
+def _rims(levels: np.ndarray, nlev: np.ndarray, edges: np.ndarray, is_floor: np.ndarray,
+          floor_height: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows, columns and tops of the step's edge cells (`step_edges`) that are the floor
+    above the step at its rim: most of their hits lie on their top (the mean hit in the
+    level's upper quarter; a face's cell holds the face's hits from its foot up), a floor
+    cell beside them lies within a step of that top and none more than a step below it
+    (the face's hits beyond the rim leave the cells beyond it an edge). A face on a cell's
+    boundary scatters some of its hits over it at the laser's noise, and the cells along a
+    ramp's side or raised end were an obstacle where the ramp's surface covers them."""
+    rows, cols = _cells(edges & (nlev == 1))
+    level = levels[rows, cols, 0]
+    lo, hi, mean = level[:, gk.LO], level[:, gk.HI], level[:, gk.MZ]
+    upper = mean >= lo + 0.75 * (hi - lo)
+    rows, cols, hi = rows[upper], cols[upper], hi[upper]
+    padded = np.pad(np.where(is_floor, floor_height, np.nan), 1, constant_values=np.nan)
+    near, below = np.zeros(len(rows), bool), np.zeros(len(rows), bool)
+    with np.errstate(invalid="ignore"):
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                other = padded[rows + 1 + dy, cols + 1 + dx]
+                near |= np.abs(other - hi) <= max_step
+                below |= hi - other > max_step
+    keep = near & ~below
+    return rows[keep], cols[keep], hi[keep]
 
 
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:

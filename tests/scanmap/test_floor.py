@@ -225,6 +225,33 @@ def test_a_step_edge_holds_a_face_or_its_upper_part_between_two_floors(bottom, f
     assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
 
 
+@pytest.mark.parametrize(("mean", "beyond", "rim"), [
+    (0.079, "face", True),    # mostly the ramp's top, the face's hits beyond the rim
+    (0.040, "face", False),   # the face's own cell: its hits from its foot up
+    (0.079, "floor", False),  # the face inside the cell: the floor below lies beside it
+])
+def test_a_step_edge_whose_hits_lie_on_its_top_beside_the_face_is_the_floor_above(
+        mean, beyond, rim):
+    # A row: a ramp's top 9 cm up (floor), a cell on its raised end's edge whose level
+    # reaches down to 1.6 cm (a face 1 mm past the cell's edge scatters some of its hits
+    # into it at the laser's noise: mixed room 2017), then the face's cell (its hits from
+    # the floor below up) or the floor below itself, then the floor below
+    levels = np.zeros((1, 5, 1, gk.N_FLOAT_FIELDS), np.float32)
+    levels[0, 2, 0, [gk.LO, gk.HI, gk.MZ]] = 0.016, 0.098, mean
+    levels[0, 3, 0, [gk.LO, gk.HI, gk.MZ]] = -0.001, 0.099, 0.04
+    heights = np.array([[0.09, 0.09, np.nan, np.nan, 0.0]], np.float32)
+    if beyond == "floor":
+        levels[0, 3, 0, [gk.LO, gk.HI, gk.MZ]] = -0.001, 0.002, 0.0
+        heights[0, 3] = 0.0
+    nlev = np.ones((1, 5), np.uint8)
+    is_floor = ~np.isnan(heights)
+    edges = nk.step_edges(levels, nlev, heights, is_floor, 0.05, 0.2, 0.03)
+    assert edges[0, 2] and edges[0, 3] == (beyond == "face")
+    rows, cols, tops = floor_module._rims(levels, nlev, edges, is_floor, heights, 0.05)
+    assert list(zip(rows, cols, strict=True)) == ([(0, 2)] if rim else [])
+    assert tops == pytest.approx([0.098] if rim else [])
+
+
 @pytest.mark.parametrize(("clearance", "edge"), [(0.2, True), (0.05, False)])
 def test_a_step_edge_may_hold_its_face_and_top_as_two_levels(clearance, edge):
     # A cell straddling a ramp's side 18 cm up (fresh ramp room 608): the rays saw the
