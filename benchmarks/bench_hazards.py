@@ -382,13 +382,26 @@ def band_held(layers: CellLayers) -> np.ndarray:
     """(ny, nx) uint64: the band's height bins (as `band_crossed`) that the map's levels
     overlap in each cell: where it holds something the robot would hit."""
     in_use = np.arange(layers.levels.shape[2]) < layers.nlev[..., None]
-    lo, hi = (np.floor((layers.levels[..., i].astype(np.float64) - ROBOT.step_height)
-                       / BAND_BIN).astype(np.int64) for i in (0, 1))
+    bottom, top = (layers.levels[..., i].astype(np.float64) for i in (0, 1))
+    lo, hi = (np.floor((z - ROBOT.step_height) / BAND_BIN).astype(np.int64)
+              for z in (bottom, top))
+    # the first bin whose top lies above the level's bottom and the last whose bottom
+    # lies at or under its top, to the bins' edges exactly (the division rounds either
+    # way where a level ends on one)
+    lo += (bottom >= _bin_bottom(lo) + BAND_BIN).astype(np.int64)
+    lo -= (bottom < _bin_bottom(lo - 1) + BAND_BIN).astype(np.int64)
+    hi -= (top < _bin_bottom(hi)).astype(np.int64)
+    hi += (top >= _bin_bottom(hi + 1)).astype(np.int64)
     lo, top = np.clip(lo, 0, BAND_BINS).astype(np.uint64), np.clip(hi + 1, 0, BAND_BINS)
     one = np.uint64(1)
     spans = np.where(in_use & (top > lo), (one << top.astype(np.uint64)) - (one << lo),
                      np.uint64(0))  # bits lo .. top - 1 of each level
     return np.bitwise_or.reduce(spans, axis=2)
+
+
+def _bin_bottom(index: np.ndarray) -> np.ndarray:
+    """The bottom (m) of the band's height bins `index`."""
+    return ROBOT.step_height + index * BAND_BIN
 
 
 def share_of_bits(mask: np.ndarray, bits: int) -> np.ndarray:

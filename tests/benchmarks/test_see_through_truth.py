@@ -5,7 +5,7 @@ those the map's levels hold (`band_held`), against interval overlap."""
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.bench_hazards import BAND_BIN, ROBOT, band_crossed, band_held, share_of_bits
@@ -78,6 +78,8 @@ def test_a_horizontal_ray_above_the_band_crosses_nothing_and_shares_are_counted(
 @given(spans=st.lists(st.tuples(st.floats(-0.3, 1.3), st.floats(0.0, 0.6)), min_size=3,
                       max_size=3),
        used=st.integers(0, 3))
+@example(spans=[(1.0, 0.0), (0.0, 0.0), (0.0, 0.0)], used=1)  # on a bin's edge: (1.0 -
+# 0.05) / 0.025 is 37.99999999999999, and the bin below it was taken as held
 def test_the_bins_a_cell_holds_are_those_its_levels_in_use_overlap(spans, used):
     """A level [lo, hi] holds bin b when it overlaps [step + b * BAND_BIN, step + (b + 1) *
     BAND_BIN); levels past nlev and heights outside the band hold nothing."""
