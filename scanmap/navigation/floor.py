@@ -348,7 +348,7 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
     sample = rng.integers(0, len(points), min(len(points), 4000))
     count, normal, offset = nk.best_plane(coords, sample, anchors, normals,
-                                          params.plane_tolerance, RANSAC_CONFIDENCE, 2)
+                                          params.seed_tolerance, RANSAC_CONFIDENCE, 2)
     if count < 3:
         return None
     if normal[2] < math.cos(params.max_slope):

@@ -44,6 +44,28 @@ def test_ransac_recovers_a_tilted_plane_among_outliers():
     assert inliers[:3000].mean() > 0.99 and inliers[3000:].mean() < 0.15
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_ransac_takes_the_larger_floor_not_a_plane_tilted_through_it_and_a_lower_one(seed):
+    # A floor 3 m deep beside a dock 6.1 cm lower (terrain room 2034): a plane half way
+    # down, tilted a little, passes within plane_tolerance (3 cm) of both and holds more
+    # cells than the floor alone, and the dock's cells were the floor's seeds (379 of them
+    # FREE). The plane that fits its points best is the floor's: hypotheses are scored
+    # within the floor's own noise (`seed_tolerance`)
+    rng = np.random.default_rng(seed)
+    cells = np.arange(0.025, 4.0, 0.05)
+    floor_xy = np.array([(x, y) for x in cells for y in cells[cells < 3.0]])
+    dock_xy = np.array([(x, -1.0 - y) for x in cells for y in cells[cells < 1.5]])
+    points = np.vstack([np.column_stack([floor_xy, rng.normal(0.0, 0.003, len(floor_xy))]),
+                        np.column_stack([dock_xy, rng.normal(-0.061, 0.003, len(dock_xy))])])
+    tolerance = FloorConfig().plane_tolerance
+    held = max(int((np.abs(points[:, 2] - base - rise * points[:, 1]) <= tolerance).sum())
+               for base in np.linspace(-0.06, 0.0, 61) for rise in np.linspace(0.0, 0.03, 31))
+    assert held > len(floor_xy)  # z = base + rise * y through both holds more than the floor
+    normal, offset, inliers = ransac_plane(points, FloorConfig(), np.random.default_rng(seed))
+    assert normal[2] > math.cos(math.radians(0.2)) and abs(offset) < 0.002
+    assert inliers[:len(floor_xy)].all() and not inliers[len(floor_xy):].any()
+
+
 def test_ransac_refuses_a_steep_plane():
     rng = np.random.default_rng(2)
     xy = rng.uniform(-1, 1, (500, 2))

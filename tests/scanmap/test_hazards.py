@@ -20,7 +20,7 @@ from benchmarks.bench_hazards import (
     traversable,
     truth_classes,
 )
-from benchmarks.random_rooms import mixed_room, ramp_room, random_room, step_room
+from benchmarks.random_rooms import mixed_room, ramp_room, random_room, step_room, terrain_room
 from scanmap.grid import _kernels as gk
 from scanmap.navigation import DROP_OFF, FREE, LETHAL, OBSTACLE, UNKNOWN, inflate, morphology
 from scanmap.navigation.floor import FloorConfig, RobotShape
@@ -613,6 +613,13 @@ def test_a_cell_below_a_step_read_within_a_step_of_its_edge_is_never_free(seed, 
     # sides, they joined that floor (`touching_floor`), FREE from the 12th scan on and
     # from the 9th for five scans
     assert hazard_run(scans, scene=step_room(seed), pixel_sigma=0.3)["drop_free_any_scan"] == 0
+
+
+def test_a_dock_beside_the_path_a_little_deeper_than_a_step_is_never_free():
+    # Terrain room 2034's dock, 6.1 cm down beside the robot's start: a plane half way
+    # between it and the floor held both within plane_tolerance, more cells than the floor
+    # alone, and the dock's cells seeded the floor (144 and 379 FREE at the first two scans)
+    assert hazard_run(2, scene=terrain_room(2034))["drop_free_any_scan"] == 0
 
 
 def test_a_step_down_a_laser_line_crossed_at_a_slant_is_never_free():
