@@ -183,7 +183,8 @@ class FloorConfig:
 
     thickness: most vertical extent (m) of a level that can be floor; clearance: free
     height above it (m) that a floor cell needs.
-    plane_tolerance: RANSAC inlier distance (m), and the floor's noise elsewhere: a
+    plane_tolerance: distance (m) of the floor plane's inliers (its hypotheses are scored
+    within seed_tolerance, `ransac_plane`), and the floor's noise elsewhere: a
     surface lower than that below the floor is a sign of a hole (a gap's rim dipping so
     is no gap). max_slope: steepest floor plane (rad).
     min_plane_cells: support of a reported plane. min_seed_cells, seed_tolerance: the
@@ -336,8 +337,11 @@ class Segmentation:
 
 def ransac_plane(points: np.ndarray, params: FloorConfig,
                  rng: np.random.Generator) -> tuple[np.ndarray, float, np.ndarray] | None:
-    """The near-horizontal plane with most inliers among `ransac_iterations` hypotheses
-    (fewer once RANSAC_CONFIDENCE is reached), refined by least squares; or None."""
+    """The near-horizontal plane with most points within `seed_tolerance` (the floor's
+    own noise) among `ransac_iterations` hypotheses (fewer once RANSAC_CONFIDENCE is
+    reached), refined by least squares on those points; its inliers are the points within
+    `plane_tolerance`; or None. Scored within plane_tolerance, a plane half way down a
+    dock 6 cm deep held the floor and the dock both."""
     if len(points) < 3:
         return None
     triples = rng.integers(0, len(points), (params.ransac_iterations, 3))
