@@ -2,15 +2,17 @@
 and glass surfaces (the built-in `hazards` scene) and people walking past (`people`).
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
-        [--mixed N] [--step N] [--ramp N] [--terrain N] [--people N] [--rendered N]
+        [--mixed N] [--step N] [--ramp N] [--terrain N] [--approach N] [--people N]
+        [--rendered N]
         [--first SEED] [--pixel-sigma PX] [--step-height M] [--max-slope DEG]
         [--rendered-people]
 
 With `--scene`, the same measures on other scenes (scene files, as `scanmap simulate`
-takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N`, `--terrain N` or
-`--people N`, on N random hazard rooms, mixed rooms, rooms with one step down just deeper
-than the robot's step, rooms with turned ramps near max_slope, rooms with floors reached
-by ramps, a dock and a stair, or rooms with people (`random_rooms`, seeds
+takes them); with `--random N`, `--mixed N`, `--step N`, `--ramp N`, `--terrain N`,
+`--approach N` or `--people N`, on N random hazard rooms, mixed rooms, rooms with one step
+down just deeper than the robot's step, rooms with turned ramps near max_slope, rooms with
+floors reached by ramps, a dock and a stair, rooms with a hazard across the path driven
+at head-on, or rooms with people (`random_rooms`, seeds
 from `--first`, 1 by default): a method must hold on scenes it was not built on; with
 `--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px);
 with `--step-height` and `--max-slope`, those rooms and scenes measured for a robot that

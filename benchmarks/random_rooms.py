@@ -44,6 +44,18 @@ sunken floor's rim, where the floor above meets it, is a cliff from that side: a
 that marks its cells there DROP_OFF counts them false drop-offs against the truth
 raster, which holds one class a cell and calls them floor.
 
+`approach_room(seed)`: a hazard across the robot's path, driven at head-on (every other
+family lies beside the path): a corridor 2.6-4 m wide whose floor, 4-5.5 m ahead, turns
+by up to 35 deg to the path into (by the seed, in turn) a ramp of 4-14.5 deg down to a
+floor 8-19 cm lower, a ramp as steep up to a landing 6-25 cm high (both wall to wall: the
+lower floor is reached by its ramp), a step down of 5.5-19 cm (wall to wall), a loading
+dock 0.3-1 m down, or four stairs down, each 12-19 cm and 0.25-0.32 m deep, to a floor
+a riser lower (both with a 0.25 m ledge along each wall and the far one: the walls end
+0.2 m down); the robot drives up to it, poses 0.25-0.4 m apart (within 0.1 m of the
+axis, the heading within 0.06 rad), and stops 0.15-0.5 m from the edge, its footprint on
+the floor. Seen from afar, the floor past the edge shows first through a few laser lines
+running down the slope, its near edge seen from above or not at all.
+
 `people_room(seed)`: people pass while walls and furniture stay, in a walled room 7-10 m
 long and 2.8-4 m wide with three cabinets (0.4-0.9 m long, 0.4 m deep, 0.7 m high,
 turned by up to 17 deg) against its long walls, their faces at any offset to the cells;
@@ -319,7 +331,71 @@ def people_room(seed: int) -> Scene:
                  [], poses, people)
 
 
+APPROACH = ("ramp down", "ramp up", "step down", "dock", "stairs down")
+LEDGE = 0.25  # m of floor between a dock's or a stair's side and the wall
+
+
+def _strip(near: float, angle: float, start: float, end: float | None, half: float,
+           wall: float) -> list[list[float]]:
+    """The floor from `start` to `end` m past the line through (near, 0) turned by `angle`
+    (its normal (cos, sin) pointing away from the robot), or with `end` None up to the
+    wall x = `wall`, between y = -half and half: a convex polygon, counter-clockwise."""
+    def x_at(depth: float, y: float) -> float:
+        return round(near + (depth - math.sin(angle) * y) / math.cos(angle), 4)
+    if end is None:
+        return [[x_at(start, -half), -half], [wall, -half], [wall, half], [x_at(start, half), half]]
+    return [[x_at(start, -half), -half], [x_at(end, -half), -half], [x_at(end, half), half],
+            [x_at(start, half), half]]
+
+
+def approach_room(seed: int) -> Scene:
+    """The room with a hazard across the path of the module docstring drawn from `seed`."""
+    rng = np.random.default_rng(seed)
+    kind = APPROACH[seed % len(APPROACH)]
+    width, near = rng.uniform(2.6, 4.0), rng.uniform(4.0, 5.5)
+    angle = rng.uniform(-0.61, 0.61)  # the edge's normal against the path
+    inner = 0.5 * width - 0.05  # the walls' inner faces
+    ledges = kind in ("dock", "stairs down")
+    half = round(inner - (LEDGE if ledges else 0.0), 4)
+    far = round(near + (3.0 + math.sin(abs(angle)) * inner) / math.cos(angle), 3)  # the
+    # east wall's inner face: 3 m past the edge where it lies farthest off
+    end_x = far - (LEDGE if ledges else 0.0)
+
+    def region(name: str, start: float, end: float | None, height: float,
+               gradient: float = 0.0) -> dict:
+        slope = [round(gradient * math.cos(angle), 6), round(gradient * math.sin(angle), 6)]
+        return {"polygon": _strip(near, angle, start, end, half, end_x), "height": height,
+                "gradient": slope, "name": name, "color": [130, 130, 130]}
+
+    if kind in ("ramp down", "ramp up"):
+        sign = -1.0 if kind == "ramp down" else 1.0
+        gradient = math.tan(math.radians(rng.uniform(4.0, 14.5)))
+        drop = rng.uniform(0.08, 0.19) if kind == "ramp down" else rng.uniform(0.06, 0.25)
+        length = drop / gradient
+        middle = sign * (0.5 * drop + 3e-4)  # rounded away from the floor
+        regions = [region(kind, 0.0, length, round(middle, 5), sign * gradient),
+                   region("lower floor" if sign < 0 else "landing", length, None,
+                          round(2.0 * middle, 5))]
+    elif kind == "stairs down":
+        riser, tread = rng.uniform(0.12, 0.19), rng.uniform(0.25, 0.32)
+        regions = [region(f"stair {k + 1}", k * tread, (k + 1) * tread,
+                          round(-riser * (k + 1), 4)) for k in range(4)]
+        regions.append(region("stairwell floor", 4 * tread, None, round(-riser * 5, 4)))
+    else:
+        depth = rng.uniform(0.055, 0.19) if kind == "step down" else rng.uniform(0.3, 1.0)
+        regions = [region(kind, 0.0, None, round(-depth, 4))]
+    # up to the edge: the last pose 0.46-0.69 m from it on the axis, 0.06 m more or less
+    # beside it (0.1 m off the axis), so the footprint (0.25 m) stops 0.15-0.5 m short
+    step, stop = rng.uniform(0.25, 0.4), rng.uniform(0.46, 0.69)
+    last = near - stop / math.cos(angle)
+    poses = [[round(x, 3), round(float(rng.uniform(-0.1, 0.1)), 3),
+              round(float(rng.uniform(-0.06, 0.06)), 4)]
+             for x in last - step * np.arange(int(last / step), -1, -1)]
+    return _room(f"approach room {seed}", f"approach_room({seed})", round(far + 1.1, 4),
+                 round(width, 3), 0.8, [], regions, poses)
+
+
 # the drawn rooms' families by `bench_hazards`' flag (`--random N`, ...): the drop-off and
 # ramp measures
 FAMILIES = {"random": random_room, "mixed": mixed_room, "step": step_room, "ramp": ramp_room,
-            "terrain": terrain_room}
+            "terrain": terrain_room, "approach": approach_room}

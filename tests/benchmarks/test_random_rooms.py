@@ -1,6 +1,6 @@
 """Random hazard rooms (`benchmarks.random_rooms`): scenes drawn afresh from a seed, and
-the hazards benchmark's `--random`, `--mixed`, `--step`, `--ramp`, `--terrain` and
-`--people` measures on them."""
+the hazards benchmark's `--random`, `--mixed`, `--step`, `--ramp`, `--terrain`,
+`--approach` and `--people` measures on them."""
 
 from __future__ import annotations
 
@@ -11,9 +11,11 @@ import numpy as np
 
 from benchmarks.bench_hazards import main, mapped
 from benchmarks.random_rooms import (
+    APPROACH,
     HAZARDS,
     MIXED,
     PEOPLE_SCANS,
+    approach_room,
     mixed_room,
     people_room,
     ramp_room,
@@ -203,6 +205,37 @@ def test_the_benchmark_measures_terrain_rooms(capsys):
     assert set(out) == {"terrain_room(3)", "worst"}
     assert out["terrain_room(3)"]["drop_free"] == 0
     assert out["terrain_room(3)"]["drop_found"] > 0
+
+
+def test_an_approach_rooms_hazard_lies_across_the_path_and_the_robot_stops_short_of_it():
+    """Seeds draw the kinds in turn; the floor past a ramp is floor to the truth (reached
+    down or up the ramp), past a step, a dock's edge or a stair a drop-off; the robot
+    drives at it and its last pose stands 0.15-0.5 m short of the edge, never on it."""
+    for seed in range(1, 11):
+        room = approach_room(seed)
+        assert room.to_dict() == approach_room(seed).to_dict()
+        kind = APPROACH[seed % len(APPROACH)]
+        regions = room.floor_regions
+        assert kind.startswith(regions[0].name.split()[0])
+        raster = truth_raster(room)
+        far = np.mean(regions[-1].corners, axis=0)
+        expected = RASTER_FLOOR if kind.startswith("ramp") else RASTER_DROP_OFF
+        assert raster.class_at(far[None])[0] == expected, (seed, kind)
+        assert_path_clear(room, seed)
+        edge = regions[0].corners[[0, 3]]  # its near side, from y = -half to half
+        normal = np.array([edge[1, 1] - edge[0, 1], edge[0, 0] - edge[1, 0]])
+        normal /= np.linalg.norm(normal)  # pointing away from the robot
+        gaps = (edge[0] - room.scan_poses[:, :2]) @ normal - 0.25  # footprint to the edge
+        assert (gaps > 0.15 - 1e-3).all() and gaps[-1] < 0.5 + 1e-3, (seed, gaps[-1])
+        assert np.all(np.diff(room.scan_poses[:, 0]) > 0.2)  # driving at it
+
+
+def test_the_benchmark_measures_approach_rooms(capsys):
+    assert main(["--approach", "1", "--first", "3", "--quick"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"approach_room(3)", "worst"}
+    assert out["approach_room(3)"]["drop_free"] == 0
+    assert out["approach_room(3)"]["drop_found"] > 0
 
 
 def test_the_benchmark_measures_the_rooms_for_another_robot(capsys):
