@@ -1458,8 +1458,19 @@ def _below(bits: np.uint64, margin: int) -> np.uint64:
         else np.uint64(0)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _any_around(mask: np.ndarray, y: int, x: int) -> bool:
+    """Whether `mask` holds one of the 8 neighbours of the cell (y, x)."""
+    ny, nx = mask.shape
+    for yy in range(max(y - 1, 0), min(y + 2, ny)):
+        for xx in range(max(x - 1, 0), min(x + 2, nx)):
+            if mask[yy, xx] and (yy != y or xx != x):
+                return True
+    return False
+
+
 @njit(cache=True, nogil=True)
-def _plates(boards: np.ndarray, occupied: np.ndarray) -> np.ndarray:
+def _plates(boards: np.ndarray, occupied: np.ndarray, blank: np.ndarray) -> np.ndarray:
     """The boards (their heights, widened) that overhang: they continue sideways at the
     same heights in at least two of the 8 neighbouring cells (a neighbour's board holds
     this one's middle height: a table top's rim does; a stray piece of a wall face, or a
@@ -1467,12 +1478,14 @@ def _plates(boards: np.ndarray, occupied: np.ndarray) -> np.ndarray:
     not all on one side of it (a sheet of stray hits sloping along a wall's face: its
     cells along the face lie at other heights, only those towards the wall at its own), and
     no neighbour holds anything more than two bins below them (the side of a box under its
-    top, the rest of a wall under a piece of it that rays grazing the face left apart)."""
+    top, the rest of a wall under a piece of it that rays grazing the face left apart),
+    nor is `blank` (nothing seen, nothing hit: the inside of a wall whose face lies a few
+    mm inside the board's cell; behind a table's rim, rays pass under its top)."""
     ny, nx = boards.shape
     out = np.zeros((ny, nx), np.uint64)
     for y in range(ny):
         for x in range(nx):
-            if not boards[y, x]:
+            if not boards[y, x] or _any_around(blank, y, x):
                 continue
             below = _below(boards[y, x], 2)
             middle = np.uint64(1) << np.uint64((_lowest_bit(boards[y, x])
@@ -1599,7 +1612,8 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
     for y in range(ny):
         for x in range(nx):
             gaps[y, x] = unseen[y, x] & _above_lowest_seen(seen[y, x])
-    overhang = _spread_overhangs(_plates(hanging, occupied), gaps, state, reach)
+    overhang = _spread_overhangs(_plates(hanging, occupied, (seen == 0) & (nlev == 0)), gaps,
+                                 state, reach)
     widened = np.empty((ny, nx), np.uint64)  # each cell's obstacles widened, once per cell
     for y in range(ny):
         for x in range(nx):
