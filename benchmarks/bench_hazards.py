@@ -234,19 +234,20 @@ def drop_measures(seg: Segmentation, truth: np.ndarray, raster: TruthRaster
     """Drop-off cells reported free (strict and more than a cell inside) and the edge
     error (`evaluation.drop_off_errors` on `raster`, of any resolution, the map at the
     true poses); `truth` is the true class at each of `seg`'s cells."""
-    errors = drop_off_errors(seg, raster, np.eye(4)) or {  # a scene without drop-offs
-        "free_cells_on_drop_offs": 0, "free_cells_inside_drop_offs": 0,
-        "drop_off_edge_cells": 0, "drop_off_edge_error_cells": 0.0,
-        "drop_off_edge_within_one": 1.0,
-        "false_drop_off_cells": int(((seg.state == DROP_OFF) & (truth == TRUE_FLOOR)).sum())}
-    return {"drop_free_strict": errors["free_cells_on_drop_offs"],
-            "drop_free": errors["free_cells_inside_drop_offs"],
-            "edge_cells": errors["drop_off_edge_cells"],
-            "edge_error_cells": errors["drop_off_edge_error_cells"],
-            "edge_within_one": errors["drop_off_edge_within_one"],
-            "drop_false": errors["false_drop_off_cells"],
+    return {**_drop_figures(drop_off_errors(seg, raster, np.eye(4))),
             "drop_found": int(((seg.state == DROP_OFF) & (truth == TRUE_DROP_OFF)).sum()),
             "drop_cells": int((truth == TRUE_DROP_OFF).sum())}
+
+
+def _drop_figures(errors: dict[str, float]) -> dict[str, float]:
+    """The drop-off figures of `evaluation.drop_off_errors`' measures by this module's
+    names; a scene without drop-offs has none free and no edge to place."""
+    return {"drop_free_strict": errors.get("free_cells_on_drop_offs", 0),
+            "drop_free": errors.get("free_cells_inside_drop_offs", 0),
+            "edge_cells": errors.get("drop_off_edge_cells", 0),
+            "edge_error_cells": errors.get("drop_off_edge_error_cells", 0.0),
+            "edge_within_one": errors.get("drop_off_edge_within_one", 1.0),
+            "drop_false": errors["false_drop_off_cells"]}
 
 
 def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene,
@@ -309,13 +310,10 @@ def rendered_run(scene: Scene | None = None, scans: int | None = None,
                                        seed=seed, scans=scans, workers=2)
         report = map_to_folder(recording, f"{scratch}/map", workers=2)
     errors = report["errors"]["map"]
-    return {"scans": report["input"]["scans"],
-            "drop_free_strict": errors["free_cells_on_drop_offs"],
-            "drop_free": errors["free_cells_inside_drop_offs"],
-            "drop_recall": errors["drop_off_recall"],
-            "edge_error_cells": errors["drop_off_edge_error_cells"],
-            "edge_within_one": errors["drop_off_edge_within_one"],
-            "drop_false": errors["false_drop_off_cells"],
+    figures = _drop_figures(errors)
+    del figures["edge_cells"]
+    return {"scans": report["input"]["scans"], **figures,
+            "drop_recall": errors.get("drop_off_recall", math.nan),
             "obstacle_f1": errors["obstacle_f1"],
             "ramp_f1": errors.get("ramp_f1", math.nan),
             "ramp_traversable_f1": errors.get("ramp_traversable_f1", math.nan),

@@ -25,7 +25,8 @@
   edge within one cell of the truth; on a raster of EDGE_RASTER cells drawn from the
   scene where it is at hand); false drop-offs: the map's
   DROP_OFF cells on true floor more than a cell (1.5 cells, diagonals included) from any
-  true drop-off.
+  true drop-off (in a scene without drop-offs, reported alone: every DROP_OFF cell on
+  true floor, as the floor past a ramp down seen from afar).
 * ramps (where the raster has sloped floor): the F1 of the map's floor (`is_floor`)
   against the true floor (a ramp within the raster's max_slope; one steeper is not
   floor) over the map's cells on sloped floor that hold a hit (`hits`; without them,
@@ -222,11 +223,14 @@ def f1_score(predicted: np.ndarray, actual: np.ndarray) -> float:
 
 def drop_off_errors(seg: Segmentation, raster: TruthRaster, world_from_map: np.ndarray
                     ) -> dict[str, float]:
-    """The drop-off measures of the module docstring (empty where the raster has none)."""
+    """The drop-off measures of the module docstring; where the raster has none, only the
+    false drop-offs (every DROP_OFF cell on true floor: a ramp down seen from afar)."""
     true_drop = raster.classes == RASTER_DROP_OFF
-    if not true_drop.any():
-        return {}
     drop, free = seg.state == floor.DROP_OFF, seg.state == floor.FREE
+    if not true_drop.any():
+        on_floor = _raster_at_cells(raster.classes == RASTER_FLOOR, raster, seg,
+                                    world_from_map, False)
+        return {"false_drop_off_cells": int((drop & on_floor).sum())}
     detected, observed = _found(raster, RASTER_DROP_OFF, drop, seg.state != floor.UNKNOWN,
                                 seg, world_from_map)
     edge = drop & morphology.dilate(free)

@@ -210,7 +210,11 @@ def report_text(report: dict) -> str:
                          f"({g['free_cells_inside_drop_offs']} more than a cell inside); "
                          "edge within "
                          f"{g['drop_off_edge_error_cells']:.2f} cells "
-                         f"({100 * g['drop_off_edge_within_one']:.0f} % within one)")
+                         f"({100 * g['drop_off_edge_within_one']:.0f} % within one), "
+                         f"{g['false_drop_off_cells']} false")
+        elif "false_drop_off_cells" in g:
+            lines.append(f"drop-offs: none in the scene, {g['false_drop_off_cells']} cells "
+                         "claimed")
         if "ramp_f1" in g:
             lines.append(f"ramps: floor F1 {g['ramp_f1']:.3f}, traversable F1 "
                          f"{g['ramp_traversable_f1']:.3f} over {g['ramp_cells']} observed "

@@ -108,6 +108,17 @@ def test_a_perfect_map_finds_every_drop_off_and_places_its_edge_on_it(hazards_ra
     assert errors["false_drop_off_cells"] == 0
     office = evaluation.map_errors(segmentation_of(office_raster), office_raster, np.eye(4))
     assert "drop_off_recall" not in office  # no drop-off in the scene: nothing to report
+    assert office["false_drop_off_cells"] == 0  # but the claims of one, none here
+
+
+def test_drop_off_cells_in_a_scene_without_drop_offs_are_all_false(office_raster):
+    seg = segmentation_of(office_raster)
+    rows, cols = np.nonzero(seg.state == FREE)  # true floor, all of it
+    state = seg.state.copy()
+    state[rows[:40], cols[:40]] = DROP_OFF
+    errors = evaluation.map_errors(dataclasses.replace(seg, state=state), office_raster,
+                                   np.eye(4))
+    assert errors["false_drop_off_cells"] == 40 and "drop_off_recall" not in errors
 
 
 def test_drop_offs_called_free_are_counted_and_found_by_none(hazards_raster):
