@@ -3,7 +3,7 @@ and glass surfaces (the built-in `hazards` scene) and people walking past (`peop
 
     .venv/bin/python -m benchmarks.bench_hazards [--quick] [--scene FILE ...] [--random N]
         [--mixed N] [--step N] [--ramp N] [--terrain N] [--approach N] [--people N]
-        [--rendered N]
+        [--rendered N] [--rendered-approach N]
         [--first SEED] [--pixel-sigma PX] [--step-height M] [--max-slope DEG]
         [--rendered-people]
 
@@ -17,7 +17,8 @@ from `--first`, 1 by default): a method must hold on scenes it was not built on;
 `--pixel-sigma`, the drop-off and ramp rooms scanned with that laser peak noise (px);
 with `--step-height` and `--max-slope`, those rooms and scenes measured for a robot that
 climbs that step and that slope (the map's rules and the truth both read them);
-with `--rendered N`, N random and N mixed rooms through the whole pipeline (below).
+with `--rendered N`, N random and N mixed rooms through the whole pipeline (below), with
+`--rendered-approach N` N approach rooms.
 
 Ideal scans fused at their true frame poses (registration is scored elsewhere), segmented
 over the scene's bounds after every scan, for the default robot (5 cm step, 15 deg
@@ -94,13 +95,19 @@ from __future__ import annotations
 import math
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from benchmarks.bench_grid import EDGE_TOLERANCE, mixed_cells, object_cells
-from benchmarks.random_rooms import FAMILIES, mixed_room, people_room, random_room
+from benchmarks.random_rooms import (
+    FAMILIES,
+    approach_room,
+    mixed_room,
+    people_room,
+    random_room,
+)
 from scanmap.datasets.recordings import ScanSource
 from scanmap.evaluation.ground_truth import (
     EDGE_RASTER,
@@ -321,20 +328,22 @@ def rendered_run(scene: Scene | None = None, scans: int | None = None,
             "seconds_per_scan": report["mapping"]["seconds_per_scan"]}
 
 
-def rendered_rooms(count: int, first: int = 1, scans: int | None = None
+def rendered_rooms(count: int, first: int = 1, scans: int | None = None,
+                   draws: tuple[Callable[[int], Scene], ...] = (random_room, mixed_room)
                    ) -> dict[str, dict[str, float]]:
-    """`rendered_run` on `count` random hazard rooms and `count` mixed rooms (black-lined
-    holes, black carpet, glass, dim light; seeds `first` on), by room, and the worst over
-    them (the least ramp F1 of the rooms that saw a ramp)."""
+    """`rendered_run` on `count` rooms of each family of `draws` (by default random hazard
+    rooms and mixed rooms: black-lined holes, black carpet, glass, dim light; seeds
+    `first` on), by room, and the worst over them (the least recall and ramp F1 of the
+    rooms that have drop-offs and saw a ramp)."""
     rooms = {f"{draw.__name__}({seed})": rendered_run(draw(seed), scans)
-             for draw in (random_room, mixed_room) for seed in range(first, first + count)}
+             for draw in draws for seed in range(first, first + count)}
     runs = list(rooms.values())
     worst = {"rooms": len(runs), **{key: max((r[key] for r in runs), default=0) for key in (
         "drop_free", "drop_free_strict", "edge_error_cells", "drop_false")},
         **{key: min((r[key] for r in runs), default=math.nan) for key in (
-            "drop_recall", "edge_within_one", "obstacle_f1")},
+            "edge_within_one", "obstacle_f1")},
         **{key: min((r[key] for r in runs if not math.isnan(r[key])), default=math.nan)
-           for key in ("ramp_f1", "ramp_traversable_f1")}}
+           for key in ("drop_recall", "ramp_f1", "ramp_traversable_f1")}}
     return rooms | {"worst": worst}
 
 
@@ -734,6 +743,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--people", type=int, metavar="N",
                         help="instead: the ghost and erosion measures on N rooms with "
                         "people (benchmarks.random_rooms), each and summed")
+    parser.add_argument("--rendered-approach", type=int, metavar="N",
+                        help="instead: the same through the whole pipeline on N approach "
+                        "rooms (a hazard across the path, driven at head-on)")
     parser.add_argument("--rendered-people", action="store_true",
                         help="instead: the ghost and erosion measures on the built-in "
                         "people scene through rendered frames (true poses)")
@@ -765,13 +777,17 @@ def main(argv: list[str] | None = None) -> int:
                              indent=1))
     if args.rendered:
         print(json.dumps(rendered_rooms(args.rendered, args.first, scans), indent=1))
+    if args.rendered_approach:
+        print(json.dumps(rendered_rooms(args.rendered_approach, args.first, scans,
+                                        (approach_room,)), indent=1))
     rooms = people_rooms(args.people or 0, 24 if args.quick else None, args.first)
     if rooms:
         print(json.dumps(rooms | {"sum": people_summary(list(rooms.values()))}, indent=1))
     if args.rendered_people:
         print(json.dumps({"people (rendered)": people_run(24 if args.quick else None,
                                                           rendered=True)}, indent=1))
-    if not (args.scene or args.people or args.rendered or args.rendered_people
+    if not (args.scene or args.people or args.rendered or args.rendered_approach
+            or args.rendered_people
             or any(getattr(args, family) for family in FAMILIES)):
         print(json.dumps(measure(args.quick), indent=1))
     for text in args.scene:

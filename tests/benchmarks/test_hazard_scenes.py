@@ -42,6 +42,19 @@ def test_a_rendered_room_mapped_by_the_whole_pipeline_frees_no_drop_off(capsys):
     assert worst["obstacle_f1"] > 0.9 and room["ate_m"] < 0.02
 
 
+def test_a_rendered_approach_room_is_mapped_by_the_whole_pipeline(capsys):
+    """`--rendered-approach`: a loading dock across the path, driven at head-on, through
+    rendered frames and `scanmap map` (all 15 scans: the rendered stripe shows the floor
+    from about 1.6 m, the dock only in the last ones): found, none of it free, its edge
+    near the truth."""
+    assert main(["--rendered-approach", "1", "--first", "3"]) == 0
+    measures = json.loads(capsys.readouterr().out)
+    room, worst = measures["approach_room(3)"], measures["worst"]
+    assert room["scans"] == 15 and worst["rooms"] == 1
+    assert room["drop_free"] == 0 and room["drop_recall"] > 0.8
+    assert room["edge_error_cells"] <= 1.5 and room["ate_m"] < 0.02
+
+
 def test_a_scan_thinned_for_the_timing_keeps_whole_frames_evenly():
     """The timing's 20,000-point scan: whole frames kept (every point of a kept frame,
     none of another), spread over the turn, about the points asked for."""
