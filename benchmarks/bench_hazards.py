@@ -261,7 +261,10 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
             traversable: bool = False) -> float:
     """F1 of floor against true floor over the observed cells of the sloped regions (NaN
     without any); with `traversable`, of floor and FREE (not a step's edge, its band
-    seen), but for the cells a face higher than a step crosses (`face_cells`)."""
+    seen), but for the cells a face higher than a step crosses (`face_cells`). Cells an
+    object's face only grazes are not scored (`bench_grid.mixed_cells`, as for the walls'
+    figures: a corridor's wall 1 mm past the edge of the cells of a ramp that runs wall to
+    wall puts its noisy hits in them, an obstacle)."""
     ny, nx = seg.shape
     x = seg.origin[0] + (np.arange(nx) + 0.5) * seg.resolution
     y = seg.origin[1] + (np.arange(ny) + 0.5) * seg.resolution
@@ -273,6 +276,9 @@ def ramp_f1(seg: Segmentation, truth: np.ndarray, hits: np.ndarray, scene: Scene
     cells = ramps & hits
     if not cells.any():  # no ramp, or none seen
         return float("nan")
+    raster = truth_raster(scene, CELL, seg.robot.step_height, seg.robot.height)
+    cells &= truth_classes(seg, replace(raster, classes=mixed_cells(scene, raster).astype(
+        np.uint8))) == 0
     floor = seg.is_floor
     if traversable:
         floor = floor & (seg.state == FREE)
