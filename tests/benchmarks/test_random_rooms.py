@@ -8,6 +8,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 
 from benchmarks.bench_hazards import main, mapped
 from benchmarks.random_rooms import (
@@ -199,12 +200,13 @@ def test_a_terrain_rooms_floors_reached_by_ramps_are_floor_and_its_dock_and_stai
         assert_path_clear(room, seed)
 
 
-def test_the_benchmark_measures_terrain_rooms(capsys):
-    assert main(["--terrain", "1", "--first", "3", "--quick"]) == 0
+@pytest.mark.parametrize("family", ["terrain", "approach"])
+def test_the_benchmark_measures_terrain_and_approach_rooms(capsys, family):
+    assert main([f"--{family}", "1", "--first", "3", "--quick"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) == {"terrain_room(3)", "worst"}
-    assert out["terrain_room(3)"]["drop_free"] == 0
-    assert out["terrain_room(3)"]["drop_found"] > 0
+    assert set(out) == {f"{family}_room(3)", "worst"}
+    assert out[f"{family}_room(3)"]["drop_free"] == 0
+    assert out[f"{family}_room(3)"]["drop_found"] > 0
 
 
 def test_an_approach_rooms_hazard_lies_across_the_path_and_the_robot_stops_short_of_it():
@@ -229,13 +231,6 @@ def test_an_approach_rooms_hazard_lies_across_the_path_and_the_robot_stops_short
         assert (gaps > 0.15 - 1e-3).all() and gaps[-1] < 0.5 + 1e-3, (seed, gaps[-1])
         assert np.all(np.diff(room.scan_poses[:, 0]) > 0.2)  # driving at it
 
-
-def test_the_benchmark_measures_approach_rooms(capsys):
-    assert main(["--approach", "1", "--first", "3", "--quick"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert set(out) == {"approach_room(3)", "worst"}
-    assert out["approach_room(3)"]["drop_free"] == 0
-    assert out["approach_room(3)"]["drop_found"] > 0
 
 
 def test_the_benchmark_measures_the_rooms_for_another_robot(capsys):
