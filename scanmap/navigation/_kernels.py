@@ -1479,8 +1479,8 @@ def _plates(boards: np.ndarray, occupied: np.ndarray, blank: np.ndarray) -> np.n
     cells along the face lie at other heights, only those towards the wall at its own), and
     no neighbour holds anything more than two bins below them (the side of a box under its
     top, the rest of a wall under a piece of it that rays grazing the face left apart),
-    nor is `blank` (nothing seen, nothing hit: the inside of a wall whose face lies a few
-    mm inside the board's cell; behind a table's rim, rays pass under its top)."""
+    nor lies in `blank` (nothing seen there, nothing hit: the inside of a wall whose face
+    lies a few mm inside the board's cell; behind a table's rim, rays pass under its top)."""
     ny, nx = boards.shape
     out = np.zeros((ny, nx), np.uint64)
     for y in range(ny):
