@@ -1458,17 +1458,6 @@ def _below(bits: np.uint64, margin: int) -> np.uint64:
         else np.uint64(0)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _any_around(mask: np.ndarray, y: int, x: int) -> bool:
-    """Whether `mask` holds one of the 8 neighbours of the cell (y, x)."""
-    ny, nx = mask.shape
-    for yy in range(max(y - 1, 0), min(y + 2, ny)):
-        for xx in range(max(x - 1, 0), min(x + 2, nx)):
-            if mask[yy, xx] and (yy != y or xx != x):
-                return True
-    return False
-
-
 @njit(cache=True, nogil=True)
 def _plates(boards: np.ndarray, occupied: np.ndarray, blank: np.ndarray) -> np.ndarray:
     """The boards (their heights, widened) that overhang: they continue sideways at the
@@ -1485,7 +1474,7 @@ def _plates(boards: np.ndarray, occupied: np.ndarray, blank: np.ndarray) -> np.n
     out = np.zeros((ny, nx), np.uint64)
     for y in range(ny):
         for x in range(nx):
-            if not boards[y, x] or _any_around(blank, y, x):
+            if not boards[y, x]:
                 continue
             below = _below(boards[y, x], 2)
             middle = np.uint64(1) << np.uint64((_lowest_bit(boards[y, x])
@@ -1498,7 +1487,7 @@ def _plates(boards: np.ndarray, occupied: np.ndarray, blank: np.ndarray) -> np.n
                         count += 1
                         sx += xx - x
                         sy += yy - y
-                    supported |= occupied[yy, xx] & below != 0
+                    supported |= occupied[yy, xx] & below != 0 or blank[yy, xx]
             if count >= 2 and not supported and sx * sx + sy * sy < count * count:
                 out[y, x] = _widen(boards[y, x])
     return out
