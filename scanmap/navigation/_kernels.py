@@ -1006,14 +1006,23 @@ def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach
 
 @njit(cache=True, nogil=True)
 def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step: float,
-                res: float, plane_noise: float) -> tuple[np.ndarray, np.ndarray]:
+                res: float, plane_noise: float, faces: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Slope (rad) of each candidate cell's floor, from the planes fitted to the
     candidates of the windows that hold it: a window is the square of `radius` cells
     round a candidate, its cells within `max_step` of that centre's height (the other
     side of a step is another surface), each where its hits lie (its cell's centre plus
     `offsets`, ny x nx x 2: the mean hit's x, y offset; a turned ramp's lines cross its
     cells off centre, up to 1.3 cm up or down a 15 deg slope from the centre's height).
-    A window whose plane fits within `plane_noise` (RMS, m) lies on one surface. Of the
+    A window whose plane fits within `plane_noise` (RMS, m) lies on one surface, unless
+    it holds one of the `faces` (cells whose level is taller than a step: a face the
+    robot cannot climb crosses them): a face lit by lines at several heights leaves its
+    cells half way down, and with the floors on either side they fitted a 12 deg plane
+    where the cells between held no hit (step room 1196, a step 5.8 cm down: its lower
+    floor joined the floor through them, 118 cells FREE at the 4th scan; the levels
+    taller than a surface one may drive on, with its noise, as `mean_hit_heights` reads
+    them, also took in ramp cells at 0.3 px of noise, and with each a window of 25
+    cells: ramp F1 down by up to 0.02). Of the
     nine round the cell (centred on it and `radius` cells off in x, y or both: each holds
     it, and at an edge one lies on each side; all 25 gave the same ramp F1 in 1.3 times
     the time) that hold it and pass within twice `plane_noise` of its height, it takes
@@ -1069,15 +1078,17 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                 continue
             at_hits, szz = none, 0.0  # and the sum of their squared heights
             ox, oy = offsets[y, x, 0], offsets[y, x, 1]
+            face = False
             for yy in range(max(y - radius, 0), min(y + radius + 1, ny)):
                 for xx in range(max(x - radius, 0), min(x + radius + 1, nx)):
                     dz = heights[yy, xx] - hc
                     if abs(dz) <= max_step:  # False for NaN
+                        face = face or faces[yy, xx]
                         szz += dz * dz
                         at_hits = _with_cell(at_hits, (xx - x) * res + offsets[yy, xx, 0] - ox,
                                              (yy - y) * res + offsets[yy, xx, 1] - oy, dz, 1.0)
             gx, gy = _gradient(at_hits, res)
-            if not np.isnan(gx):
+            if not np.isnan(gx) and not face:
                 rms = _plane_rms(at_hits, szz, gx, gy)
                 if rms <= plane_noise:
                     n = at_hits[0]
@@ -2006,3 +2017,4 @@ def polygon_margin(polygon, radius, state, points, geo):
             if d < best:
                 best, kind = d, state[y, x]
     return best, kind
+

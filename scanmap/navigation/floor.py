@@ -524,7 +524,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     mean_heights = nk.mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
     slope, tangents = nk.local_slope(mean_heights, hits_at,
                                      max(round(params.slope_reach / res), 1),
-                                     robot.step_height, res, params.plane_noise)
+                                     robot.step_height, res, params.plane_noise,
+                                     _taller_than(layers, cand, robot.step_height))
     # steep, or crossed by a face down a step (no floor of its own: a step's edge between
     # two floors at most, `step_edges`)
     steep = (slope > params.max_slope) | nk.faces_below(layers.levels, cand,
@@ -944,6 +945,12 @@ def _below_model(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
     model (a hole's far wall, seen only at its top, less than a step down)."""
     return nk.lowest_level_below(layers.levels, layers.nlev, is_floor, floor - tolerance,
                                  gk.HI)
+
+
+def _taller_than(layers: CellLayers, candidates: np.ndarray, span: float) -> np.ndarray:
+    """Floor candidates whose lowest level spans more than `span` (m)."""
+    return (layers.levels[:, :, 0, gk.HI] - layers.levels[:, :, 0, gk.LO] > span) \
+        & ~np.isnan(candidates)
 
 
 def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,

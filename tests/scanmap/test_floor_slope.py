@@ -33,7 +33,8 @@ def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None
     """`local_slope` of candidate heights sampled at the cells' centres (or `offsets`)."""
     if offsets is None:
         offsets = np.zeros(heights.shape + (2,))
-    return nk.local_slope(heights, offsets, REACH, step, RES, noise)[0]
+    return nk.local_slope(heights, offsets, REACH, step, RES, noise,
+                          np.zeros(heights.shape, bool))[0]
 
 
 @settings(max_examples=60, deadline=None)
@@ -41,7 +42,8 @@ def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None
 def test_the_slope_of_a_plane_is_its_gradient(gx, gy, base):
     y, x = np.mgrid[0:9, 0:9] * RES
     heights = (base + gx * x + gy * y).astype(np.float64)
-    slope, tangent = nk.local_slope(heights, np.zeros((9, 9, 2)), REACH, 10.0, RES, NOISE)
+    slope, tangent = nk.local_slope(heights, np.zeros((9, 9, 2)), REACH, 10.0, RES, NOISE,
+                                    np.zeros((9, 9), bool))
     assert math.isclose(slope[4, 4], math.atan(math.hypot(gx, gy)), abs_tol=1e-4)
     np.testing.assert_allclose(tangent[4, 4], (heights[4, 4], 4 * RES, 4 * RES, gx, gy),
                                atol=1e-4, rtol=1e-6)
@@ -511,3 +513,84 @@ def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(h
                                   np.ones(heights.shape, bool))
     assert np.array_equal(floor._bridged_steps(heights, level, STEP, REACH_OF_A_STEP),
                           everywhere)
+
+
+# Step room 1196's step down, 5.8 cm deep, turned 47 deg, at its 4th scan at 0.1 px: the
+# floor candidates' mean hit heights (mm) round its face (rows along y), the heights their
+# lowest levels span (mm) and where their hits lie. Lines lit the face at several heights,
+# so the cells it crosses hold levels up to 6 cm tall, their middles half way down (-28 to
+# -36 mm); the cells between them and the two floors held no hit, so the floor above, the
+# face's cells and the floor below (-58 mm) lay on one 12 deg plane, and the growth
+# crossed the face through them: 118 cells of the floor below FREE
+FACE_HALF_WAY_MM = [
+    [-1, -1, 0, 0, NAN, NAN, 0, 0, 0, NAN, 1],
+    [NAN, NAN, 0, NAN, NAN, 0, 0, 0, NAN, 0, -29],
+    [NAN, 0, 0, NAN, 0, 0, NAN, NAN, -1, -28, -58],
+    [0, 0, 0, 0, 0, NAN, NAN, NAN, -29, -59, NAN],
+    [0, 1, 0, 0, NAN, NAN, -30, -30, NAN, NAN, NAN],
+    [1, 0, 0, NAN, NAN, -30, -31, NAN, NAN, NAN, -58],
+    [0, 1, NAN, NAN, -33, -31, NAN, NAN, NAN, -58, -59],
+    [0, NAN, NAN, -35, -34, NAN, NAN, -57, -58, NAN, -58],
+    [NAN, NAN, -31, -36, NAN, NAN, -58, -58, NAN, -58, -58],
+    [NAN, -32, -33, NAN, -59, -58, -58, -58, -58, -58, NAN],
+    [0, -58, NAN, -58, -58, -58, -57, -58, -57, NAN, NAN],
+]
+FACE_HALF_WAY_SPANS_MM = [
+    [1, 0, 1, 1, NAN, NAN, 2, 3, 2, NAN, 3],
+    [NAN, NAN, 2, NAN, NAN, 3, 4, 0, NAN, 1, 60],
+    [NAN, 3, 1, NAN, 2, 3, NAN, NAN, 2, 60, 1],
+    [1, 2, 3, 3, 2, NAN, NAN, NAN, 60, 0, NAN],
+    [3, 2, 3, 3, NAN, NAN, 48, 59, NAN, NAN, NAN],
+    [4, 3, 4, NAN, NAN, 22, 41, NAN, NAN, NAN, 3],
+    [0, 3, NAN, NAN, 13, 12, NAN, NAN, NAN, 3, 1],
+    [3, NAN, NAN, 40, 25, NAN, NAN, 2, 3, NAN, 2],
+    [NAN, NAN, 56, 47, NAN, NAN, 2, 2, NAN, 4, 3],
+    [NAN, 53, 52, NAN, 2, 4, 4, 2, 2, 1, NAN],
+    [3, 2, NAN, 2, 2, 2, 0, 3, 0, NAN, NAN],
+]
+
+FACE_HALF_WAY_X_MM = [  # where each cell's hits lie off its centre, x and y
+    [1, -25, 21, -13, 0, 0, 21, 1, 1, 0, 7],
+    [0, 0, 0, 0, 0, 19, -3, -19, 0, 11, -4],
+    [0, 13, -20, 0, 9, -6, 0, 0, 13, -6, -12],
+    [21, -12, 4, 4, -7, 0, 0, 0, -8, -22, 0],
+    [5, 2, 7, -7, 0, 0, 16, -8, 0, 0, 0],
+    [-15, 17, -4, 0, 0, 13, -9, 0, 0, 0, 8],
+    [16, -9, 0, 0, 12, -10, 0, 0, 0, -3, -19],
+    [-9, 0, 0, 8, -14, 0, 0, 14, 0, 0, 9],
+    [0, 0, 10, -16, 0, 0, 7, -9, 0, 3, -6],
+    [0, 8, -15, 0, 21, -1, -1, 3, 2, -18, 0],
+    [0, -8, 0, 14, -3, 2, -16, 1, -23, 0, 0],
+]
+FACE_HALF_WAY_Y_MM = [
+    [3, -22, 20, -5, 0, 0, 20, 2, -11, 0, 3],
+    [0, 0, 1, 0, 0, 20, -4, -19, 0, 6, -1],
+    [0, 7, -18, 0, 8, -8, 0, 0, 11, -1, -18],
+    [21, -5, 16, -4, -5, 0, 0, 0, -5, -23, 0],
+    [2, -3, 4, -7, 0, 0, 16, -8, 0, 0, 0],
+    [-16, 17, -11, 0, 0, 14, -11, 0, 0, 0, 11],
+    [16, -7, 0, 0, 11, -14, 0, 0, 0, 6, -19],
+    [-9, 0, 0, 11, -14, 0, 0, 19, -8, 0, 12],
+    [0, 0, 8, -17, 0, 0, 10, -14, 0, 10, -14],
+    [0, 9, -12, 0, 24, 4, 2, 2, -1, -19, 0],
+    [-6, -11, 0, 18, -2, -5, -18, 3, -19, 0, 0],
+]
+
+
+def test_a_window_holding_a_steps_face_fits_no_plane_so_the_floor_stays_above_it():
+    heights = (np.array(FACE_HALF_WAY_MM) / 1000.0).astype(np.float32)
+    spans = np.array(FACE_HALF_WAY_SPANS_MM) / 1000.0
+    offsets = np.stack([FACE_HALF_WAY_X_MM, FACE_HALF_WAY_Y_MM], axis=-1) / 1000.0
+    faces = spans > STEP  # False for NaN
+    lower = heights < -0.05
+    grown = {}
+    for label, marked in (("faces", faces), ("none", np.zeros(heights.shape, bool))):
+        slope, tangent = nk.local_slope(heights, offsets, REACH, STEP, RES, NOISE, marked)
+        level = np.where(slope > MAX_SLOPE, np.nan, heights).astype(np.float32)
+        grown[label] = grow_region(level, heights > -0.005, STEP, np.isnan(heights),
+                                   math.tan(MAX_SLOPE) * RES, heights, tangent,
+                                   2.0 * NOISE, ~np.isnan(tangent[:, :, 3]),
+                                   np.zeros_like(heights))
+    assert (grown["none"] & lower).any()  # through a window on the 12 deg plane
+    assert not (grown["faces"] & lower).any()
+    assert grown["faces"][heights > -0.005].all()  # the floor above is floor still
