@@ -755,10 +755,11 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     obstacle). Jumps are tried only from the few candidates the neighbours alone did not
     reach (a jump is the same from either end), and onwards. Every cell joins only within
     max_step of the anchor of the cell it is reached from: the height of the last cell on
-    the growth's way whose own window fits a plane (`planar`; one laser line's cells fit
-    none, `local_slope`), a seed's own where it fits one, else the seed's `seed_floor`
-    (the floor plane's height there: a seed lies up to the plane's tolerance off it, and
-    a ramp's foot anchored at the plane let a robot with a 3 cm step climb no ramp). A
+    the growth's way whose own window fits a plane that another window round it agrees
+    with (`planar`; one laser line's cells fit none, `local_slope`), a seed's own where
+    it fits one, else the seed's `seed_floor` (the floor plane's height there: a seed
+    lies up to the plane's tolerance off it, and a ramp's foot anchored at the plane let
+    a robot with a 3 cm step climb no ramp). A
     line that crossed a turned step's face at a slant grades from one floor to the other
     along a chain one cell wide, each window round it holding that line alone (step room
     1083, 6.9 cm down: 0, -1.5, ..., -6.6 cm over ten cells, 8 deg), and the growth
@@ -1060,8 +1061,12 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     even where no plane fits it; NaN with fewer than three. Returns the slope and each
     candidate's tangent plane, ny x nx x 5 (`grow_region`'s jumps along a plane): its
     height, the x and y (m from the first cell's centre) where its hits lie and, where
-    the slope is the agreeing windows' mean (the cell's own window fits a plane), their
-    mean gradient (dz/dx, dz/dy; NaN elsewhere)."""
+    the slope is the agreeing windows' mean (the cell's own window fits a plane) and
+    another window round the cell agrees with it, their mean gradient (dz/dx, dz/dy; NaN
+    elsewhere: `grow_region` anchors the floor at the cells that have one, and a lone
+    window through a line down a step's face and a line on each floor, a 14.7 deg plane
+    no window beside agreed with, anchored it half way down, step room 1196's 3rd scan:
+    51 cells of the floor below FREE)."""
     ny, nx = heights.shape
     out = np.full((ny, nx), np.nan, np.float32)
     tangent = np.full((ny, nx, 5), np.nan, np.float32)
@@ -1127,6 +1132,7 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                         if score < best:
                             best, chosen = score, fits
                         fits += 1
+            agreeing = 0
             if best < np.inf:  # the best window agrees with itself: weight > 0
                 bx, by, bv = slopes_x[chosen], slopes_y[chosen], slope_variances[chosen]
                 weight = sx = sy = 0.0
@@ -1134,6 +1140,7 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                     dx, dy = slopes_x[i] - bx, slopes_y[i] - by
                     if dx * dx + dy * dy <= AGREE * (slope_variances[i] + bv):
                         w = 1.0 / (slope_variances[i] + 1e-18)
+                        agreeing += 1
                         weight += w
                         sx += w * slopes_x[i]
                         sy += w * slopes_y[i]
@@ -1141,7 +1148,7 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
             if best == np.inf or np.isnan(variances[y, x]):  # its own window fits none
                 gentler, steepest = _fits_at_centres(heights, radius, max_step, res, y, x)
                 slope = steepest if best == np.inf else max(slope, gentler)
-            else:
+            elif agreeing >= 2:
                 tangent[y, x, 3], tangent[y, x, 4] = sx / weight, sy / weight
             if slope > -np.inf:  # a fit on either side or over both
                 out[y, x] = slope

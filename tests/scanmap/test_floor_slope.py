@@ -594,3 +594,73 @@ def test_a_window_holding_a_steps_face_fits_no_plane_so_the_floor_stays_above_it
     assert (grown["none"] & lower).any()  # through a window on the 12 deg plane
     assert not (grown["faces"] & lower).any()
     assert grown["faces"][heights > -0.005].all()  # the floor above is floor still
+
+
+# The same step's 3rd scan: one laser line crossed the face at a slant, its cells (mm)
+# grading from the floor above to the floor below along a diagonal chain (-6 to -53),
+# with a line on each floor beside it. The window of one of its cells (-29 mm) fits a
+# 14.7 deg plane through the three lines, a ramp as far as they tell, and no other window
+# round that cell agrees with it: as an anchor it let the floor half way down and on onto
+# the floor below (51 cells FREE)
+SLANTED_ACROSS_FLOORS_MM = [
+    [-1, -1, NAN, NAN, NAN, NAN, 0, 0, 0, NAN, NAN],
+    [NAN, NAN, NAN, NAN, NAN, 0, 0, 0, NAN, NAN, -58],
+    [NAN, NAN, NAN, NAN, 0, 0, NAN, NAN, NAN, -57, -58],
+    [NAN, NAN, 0, 0, 0, NAN, NAN, -59, -58, -59, NAN],
+    [1, 1, 0, 0, NAN, NAN, -53, -57, NAN, NAN, NAN],
+    [1, 0, 0, NAN, NAN, -40, -47, NAN, NAN, NAN, -58],
+    [0, 1, NAN, NAN, -29, -37, NAN, NAN, NAN, -58, -59],
+    [0, NAN, NAN, -18, -23, NAN, NAN, -57, -58, NAN, NAN],
+    [NAN, NAN, -6, -12, NAN, NAN, -58, -58, NAN, -57, -58],
+    [NAN, 0, 1, NAN, -59, -58, -58, -58, -58, NAN, NAN],
+    [0, NAN, NAN, -58, -58, -58, -57, NAN, NAN, NAN, NAN],
+]
+SLANTED_ACROSS_FLOORS_X_MM = [
+    [1, -25, 0, 0, 0, 0, 21, 1, 1, 0, 0],
+    [0, 0, 0, 0, 0, 19, -3, -19, 0, 0, 8],
+    [0, 0, 0, 0, 9, -6, 0, 0, 0, 2, -12],
+    [0, 0, 4, 4, -7, 0, 0, 23, -2, -22, 0],
+    [18, 2, 7, -7, 0, 0, 17, -4, 0, 0, 0],
+    [-9, 17, -4, 0, 0, 9, -10, 0, 0, 0, 8],
+    [16, -9, 0, 0, 13, -9, 0, 0, 0, -3, -19],
+    [-9, 0, 0, 7, -16, 0, 0, 14, 0, 0, 0],
+    [0, 0, 6, -17, 0, 0, 7, -9, 0, -5, 1],
+    [0, 2, -22, 0, 21, -1, -1, 3, -2, 0, 0],
+    [0, 0, 0, 14, -3, 2, -16, 0, 0, 0, 0],
+]
+SLANTED_ACROSS_FLOORS_Y_MM = [
+    [3, -22, 0, 0, 0, 0, 20, 2, -11, 0, 0],
+    [0, 0, 0, 0, 0, 20, -4, -19, 0, 0, 16],
+    [0, 0, 0, 0, 8, -8, 0, 0, 0, 10, -18],
+    [0, 0, 16, -4, -5, 0, 0, 18, 0, -23, 0],
+    [17, -3, 4, -7, 0, 0, 15, -10, 0, 0, 0],
+    [-17, 17, -11, 0, 0, 18, -10, 0, 0, 0, 11],
+    [16, -7, 0, 0, 11, -15, 0, 0, 0, 6, -19],
+    [-9, 0, 0, 12, -13, 0, 0, 19, -8, 0, 0],
+    [0, 0, 9, -16, 0, 0, 10, -14, 0, 13, -12],
+    [0, 4, -15, 0, 24, 4, 2, 2, -17, 0, 0],
+    [-6, 0, 0, 18, -2, -5, -18, 0, 0, 0, 0],
+]
+
+
+def test_a_plane_no_other_window_round_a_cell_agrees_with_anchors_no_floor():
+    heights = (np.array(SLANTED_ACROSS_FLOORS_MM) / 1000.0).astype(np.float32)
+    offsets = np.stack([SLANTED_ACROSS_FLOORS_X_MM, SLANTED_ACROSS_FLOORS_Y_MM],
+                       axis=-1) / 1000.0
+    slope, tangent = nk.local_slope(heights, offsets, REACH, STEP, RES, NOISE,
+                                    np.zeros(heights.shape, bool))
+    planar = ~np.isnan(tangent[:, :, 3])
+    lone = (6, 4)  # its own window fits, no other round it does
+    assert heights[lone] == pytest.approx(-0.029) and slope[lone] <= MAX_SLOPE
+    assert not planar[lone]
+    lower = heights < -0.05
+    level = np.where(slope > MAX_SLOPE, np.nan, heights).astype(np.float32)
+    with_lone = planar.copy()
+    with_lone[lone] = True
+    grown = {}
+    for label, anchors in (("agreeing", planar), ("lone too", with_lone)):
+        grown[label] = grow_region(level, heights > -0.005, STEP, np.isnan(heights),
+                                   math.tan(MAX_SLOPE) * RES, heights, tangent, 2.0 * NOISE,
+                                   anchors, np.zeros_like(heights))
+    assert (grown["lone too"] & lower).any()  # the floor as it grew before
+    assert not (grown["agreeing"] & lower).any()
