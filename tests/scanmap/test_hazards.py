@@ -629,6 +629,15 @@ def test_a_step_down_a_laser_line_crossed_at_a_slant_is_never_free():
     assert hazard_run(2, scene=step_room(1083))["drop_free_any_scan"] == 0
 
 
+def test_a_step_down_whose_face_reads_half_way_down_is_never_free():
+    # Step room 1196's step down, 5.8 cm deep: at its 3rd scan a lone face cell 2.9 cm
+    # down fitted a 14.7 deg plane with a laser line on each floor, at its 4th the face,
+    # lit at several heights, read as a band half way down between the floors; each
+    # anchored the floor half way down and it grew onto the floor below (51 and 118
+    # cells FREE)
+    assert hazard_run(4, scene=step_room(1196))["drop_free_any_scan"] == 0
+
+
 def test_a_step_down_whose_face_holds_a_seed_of_the_floor_plane_is_never_free():
     # Step room 1022's step down, 5.5 cm deep, at 0.3 px: at the 6th scan a face cell 2.8
     # cm down was an inlier of the floor plane, and from it the growth jumped to a cell 4.5
