@@ -759,10 +759,10 @@ def grow_region(heights: np.ndarray, seeds: np.ndarray, max_step: float,
     with (`planar`; one laser line's cells fit none, `local_slope`), a seed's own where
     it fits one, else the seed's `seed_floor` (the floor plane's height there: a seed
     lies up to the plane's tolerance off it, and a ramp's foot anchored at the plane let
-    a robot with a 3 cm step climb no ramp). A
-    line that crossed a turned step's face at a slant grades from one floor to the other
-    along a chain one cell wide, each window round it holding that line alone (step room
-    1083, 6.9 cm down: 0, -1.5, ..., -6.6 cm over ten cells, 8 deg), and the growth
+    a robot with a 3 cm step climb no ramp). A line that crossed a turned step's face at
+    a slant grades from one floor to the other along a chain one cell wide, each window
+    round it holding that line alone (step room 1083, 6.9 cm down: 0, -1.5, ..., -6.6 cm
+    over ten cells, 8 deg), and the growth
     walked down it onto the lower floor; a ramp's cells fit planes where two lines cross
     their windows. A planar cell too joins only within a step of the anchor it is reached
     from, and then anchors itself: a face cell 2.8 cm down was a seed (an inlier of the
@@ -1020,10 +1020,9 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     robot cannot climb crosses them): a face lit by lines at several heights leaves its
     cells half way down, and with the floors on either side they fitted a 12 deg plane
     where the cells between held no hit (step room 1196, a step 5.8 cm down: its lower
-    floor joined the floor through them, 118 cells FREE at the 4th scan; the levels
-    taller than a surface one may drive on, with its noise, as `mean_hit_heights` reads
-    them, also took in ramp cells at 0.3 px of noise, and with each a window of 25
-    cells: ramp F1 down by up to 0.02). Of the
+    floor joined the floor through them, 118 cells FREE at the 4th scan; a step, not
+    `mean_hit_heights`' drivable surface with its noise, which takes in ramp cells at 0.3
+    px, each spoiling 25 windows). Of the
     nine round the cell (centred on it and `radius` cells off in x, y or both: each holds
     it, and at an edge one lies on each side; all 25 gave the same ramp F1 in 1.3 times
     the time) that hold it and pass within twice `plane_noise` of its height, it takes
@@ -2024,4 +2023,3 @@ def polygon_margin(polygon, radius, state, points, geo):
             if d < best:
                 best, kind = d, state[y, x]
     return best, kind
-
