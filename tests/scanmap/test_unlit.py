@@ -176,6 +176,24 @@ def test_a_black_patch_the_fans_end_falls_in_is_found_unlit():
     assert len(unlit) > 100  # measured: 215 (none counting only runs between floor returns)
 
 
+def test_a_black_patch_on_the_lines_a_fading_stripe_dims_is_found_unlit():
+    """As the rendered frames show the floor: only out to 1.85 m, a fifth of its returns
+    dropped past 1.7 m. The patch, 0.6 m wide, darkens its lines in the frames facing it
+    on top of the fading: at a share of 0.9 those lines counted as past the fan's end and
+    nothing was found."""
+    scene = small_patch_scene(0.0, 0.0, 0.6, x=2.3)
+    found = 0
+    for ideal in ideal_scans(scene):
+        points = ideal.scan.points
+        reach = np.hypot(points[:, 0], points[:, 1])
+        fade = (np.abs(points[:, 2]) < 0.05) & ((reach > 1.85) | (reach > 1.7) & (
+            np.random.default_rng(ideal.scan.index).random(len(points)) < 0.2))
+        unlit = unlit_floor(ideal.scan.select(~fade), MODEL, ideal.frame_poses)
+        assert near_patch(unlit, scene, 0.03).all()
+        found += len(unlit)
+    assert found > 40  # measured: 67, all from the third scan (0 at a share of 0.9)
+
+
 TILTED = MODEL.with_changes(head_mount=HeadMount(position=(0.1, -0.05, 0.02), roll=0.02,
                                                   pitch=-0.03))
 
