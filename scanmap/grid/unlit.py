@@ -37,9 +37,10 @@ frames show the floor from 1.5 to 1.8 m), put 15 % of a scan's frames dark on th
 lines it lay on, which then counted as past the fan's end, and none of it was found
 (rendered mixed_room(4003): 22 cells FREE more than a cell inside it, 55 of them in
 all). The fan ends sharply (every frame dark one line on), and ranges where the
-stripe fades stay unjudged (`_reliable_ranges`). Floor hidden from the camera there (under a table
-top or a chair seat the laser passes beneath) counts as it does between floor returns:
-the office's first 12 ideal scans 892 -> 1083 unlit points, its map's states the same.
+stripe fades stay unjudged (`_reliable_ranges`). Floor hidden from the camera there
+(under a table top or a chair seat the laser passes beneath) counts as it does between
+floor returns: the office's first 12 ideal scans 892 -> 1083 unlit points, its map's
+states the same.
 
 A missed peak spans a line or two, and a laser shadow behind an object ends at the
 object, not the floor: none is taken for a dark patch. A frame whose points do not lie
