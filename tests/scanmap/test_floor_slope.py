@@ -577,6 +577,17 @@ FACE_HALF_WAY_Y_MM = [
 ]
 
 
+def floor_from_above(heights: np.ndarray, slope: np.ndarray, tangent: np.ndarray,
+                     planar: np.ndarray) -> np.ndarray:
+    """The floor grown from the cells at 0 (within 5 mm) over the cells no steeper than
+    MAX_SLOPE, jumping the cells without a hit and along `tangent`'s planes, anchored at
+    the `planar` cells (as `floor._segment` grows it, the floor plane at 0)."""
+    level = np.where(slope > MAX_SLOPE, np.nan, heights).astype(np.float32)
+    return grow_region(level, heights > -0.005, STEP, np.isnan(heights),
+                       math.tan(MAX_SLOPE) * RES, heights, tangent, 2.0 * NOISE, planar,
+                       np.zeros_like(heights))
+
+
 def test_a_window_holding_a_steps_face_fits_no_plane_so_the_floor_stays_above_it():
     heights = (np.array(FACE_HALF_WAY_MM) / 1000.0).astype(np.float32)
     spans = np.array(FACE_HALF_WAY_SPANS_MM) / 1000.0
@@ -586,11 +597,8 @@ def test_a_window_holding_a_steps_face_fits_no_plane_so_the_floor_stays_above_it
     grown = {}
     for label, marked in (("faces", faces), ("none", np.zeros(heights.shape, bool))):
         slope, tangent = nk.local_slope(heights, offsets, REACH, STEP, RES, NOISE, marked)
-        level = np.where(slope > MAX_SLOPE, np.nan, heights).astype(np.float32)
-        grown[label] = grow_region(level, heights > -0.005, STEP, np.isnan(heights),
-                                   math.tan(MAX_SLOPE) * RES, heights, tangent,
-                                   2.0 * NOISE, ~np.isnan(tangent[:, :, 3]),
-                                   np.zeros_like(heights))
+        grown[label] = floor_from_above(heights, slope, tangent,
+                                        ~np.isnan(tangent[:, :, 3]))
     assert (grown["none"] & lower).any()  # through a window on the 12 deg plane
     assert not (grown["faces"] & lower).any()
     assert grown["faces"][heights > -0.005].all()  # the floor above is floor still
@@ -654,13 +662,9 @@ def test_a_plane_no_other_window_round_a_cell_agrees_with_anchors_no_floor():
     assert heights[lone] == pytest.approx(-0.029) and slope[lone] <= MAX_SLOPE
     assert not planar[lone]
     lower = heights < -0.05
-    level = np.where(slope > MAX_SLOPE, np.nan, heights).astype(np.float32)
     with_lone = planar.copy()
     with_lone[lone] = True
-    grown = {}
-    for label, anchors in (("agreeing", planar), ("lone too", with_lone)):
-        grown[label] = grow_region(level, heights > -0.005, STEP, np.isnan(heights),
-                                   math.tan(MAX_SLOPE) * RES, heights, tangent, 2.0 * NOISE,
-                                   anchors, np.zeros_like(heights))
+    grown = {label: floor_from_above(heights, slope, tangent, anchors)
+             for label, anchors in (("agreeing", planar), ("lone too", with_lone))}
     assert (grown["lone too"] & lower).any()  # the floor as it grew before
     assert not (grown["agreeing"] & lower).any()
