@@ -52,7 +52,11 @@ below the floor height around it, or where rays passed more than a step below it
 floor is not where it must be; among floor hits, seen from them down unbroken, not one
 noisy hit), and below the floor where the robot stood nearest, is a
 DROP_OFF (a trench no lower than that floor, behind a ramp's raised top or beside a
-platform, may be reached round its ends: UNKNOWN until seen); the drop-off spreads up to
+platform, may be reached round its ends: UNKNOWN until seen), unless floor lies within
+`drop_reach` of it more than a step below the floor it was judged against, and nothing
+in it lies more than a step below that floor (a step down to a sunken floor the robot
+reaches round its ends, by a ramp: the floor there is not missing; an OBSTACLE, as a
+step's edge); the drop-off spreads up to
 `drop_reach` through cells without any hit that touch no hit but the drop-off's own and
 do not lie between two floor cells at most `max_hole` apart (the shadow of the rim: not
 the gaps between the laser's samples, nor the shadow of an object standing beside the
@@ -113,7 +117,11 @@ level), nor floor between two drop-off cells across it; otherwise it is UNKNOWN.
 Occupied means a level with log-odds of at least `min_logodds`: one below it (seen,
 then seen through more often since: where a person walked on) leaves its cell UNKNOWN,
 neither an obstacle nor free. The footprint cells, observed floor or not, are FREE
-unless something occupies their band or may overhang them.
+unless something occupies their band or may overhang them. Of two FREE cells side by
+side whose floors lie more than a step apart (a step's face on their boundary, or seen
+only from its top), the lower is an OBSTACLE (the upper, where the robot stood on the
+lower), as a drop-off lies beyond a rim and a raised floor's face at its foot: no robot
+crosses there.
 
 Why the map of one scan is mostly UNKNOWN: a cell is seen free at the heights that the
 rays crossing it have there, and every ray of this scanner falls from the camera (1 m
@@ -596,6 +604,11 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         drop &= nk.below_floor(layers.levels, layers.nlev, layers.seen,
                                _stood_floor(lowest, floor_height, nearest), robot.step_height,
                                layers.z_min, layers.mask_dz, one_surface)
+    if drop.any():  # a step down to floor reached round its ends: an edge, not a drop-off
+        sunk = _step_to_floor(layers, drop, is_floor, floor_height, lowest, robot.step_height,
+                              round(params.drop_reach / res))
+        edges |= sunk
+        drop &= ~sunk
     seeds = drop.copy()
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
@@ -764,10 +777,19 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # wall's hits landed inside the hole (rendered mixed room 3), or a strip a cell wide
     # between two holes that no robot drives
     state[(state == FREE) & ~stood & _between(dropped)] = UNKNOWN
+    # Two FREE cells side by side whose floors differ by more than a step (the face of a
+    # step down to floor reached round its ends, on their boundary or seen from its top
+    # only): no robot crosses there, the lower one is an edge (terrain rooms, the side of
+    # a ramp down to a sunken floor: free to free, 10-12 cm apart; a ramp's raised side)
+    # (not the heights carried under the robot where it saw no floor); floor still, as a
+    # step's edge is
+    crossing = _free_steps((state == FREE) & (is_floor | ~stood), floor_height,
+                           robot.step_height, stood)
+    state[crossing] = OBSTACLE
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
-                        is_floor=((is_floor | stood | holes & ~dim) & (state != OBSTACLE) & ~drop
-                                  & ~covered) | edges,
+                        is_floor=((is_floor | stood | holes & ~dim)
+                                  & ((state != OBSTACLE) | crossing) & ~drop & ~covered) | edges,
                         planes=planes, state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated,
                         slope=np.where(is_floor, slope, np.nan).astype(np.float32)), beyond
@@ -907,6 +929,42 @@ def _between(mask: np.ndarray) -> np.ndarray:
     np.logical_and(mask[:, :-2], mask[:, 2:], out=out[:, 1:-1])
     out[1:-1] |= mask[:-2] & mask[2:]
     return out
+
+
+def _free_steps(free: np.ndarray, floor_height: np.ndarray, step: float,
+                stood: np.ndarray) -> np.ndarray:
+    """One cell of each pair of `free` cells side by side (8 neighbours) whose floors lie
+    more than `step` apart: the lower, as at a drop-off's rim and a raised floor's foot,
+    or the upper where the robot stood on the lower."""
+    height = np.where(free, floor_height, np.nan)
+    upper, lower = _above_beside(height, step), _above_beside(-height, step)
+    return lower & ~stood | upper & ~stood & morphology.dilate(lower & stood)
+
+
+def _above_beside(height: np.ndarray, step: float) -> np.ndarray:
+    """Cells more than `step` above a cell beside them (8 neighbours; NaN: none)."""
+    ny, nx = height.shape
+    padded = np.pad(height, 1, constant_values=np.nan)
+    out = np.zeros((ny, nx), bool)
+    with np.errstate(invalid="ignore"):
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                out |= height - padded[1 + dy:1 + dy + ny, 1 + dx:1 + dx + nx] > step
+    return out
+
+
+def _step_to_floor(layers: CellLayers, drop: np.ndarray, is_floor: np.ndarray,
+                   floor_height: np.ndarray, lowest: np.ndarray, step: float, reach: int
+                   ) -> np.ndarray:
+    """Cells of `drop` beside floor more than a step below the floor they were judged
+    against (`lowest`), within `reach` cells, that hold nothing lower than a step under
+    it: the face of a step down to a floor the robot reaches round its ends (a sunken
+    floor joined by a ramp), which is floor, not missing."""
+    lower = morphology.min_filter(np.where(is_floor, floor_height, np.inf), 2 * reach + 1)
+    bottom = np.where(layers.nlev > 0, layers.levels[:, :, 0, gk.LO], np.inf)
+    deepest = np.fmin(bottom, nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz)
+                      + layers.mask_dz)  # a bin seen free: the floor lies under its top
+    return drop & (lower < lowest - step) & (deepest >= lower - step)
 
 
 def _stood_floor(lowest: np.ndarray, floor_height: np.ndarray, nearest: np.ndarray
