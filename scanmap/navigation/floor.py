@@ -783,8 +783,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # a ramp down to a sunken floor: free to free, 10-12 cm apart; a ramp's raised side)
     # (not the heights carried under the robot where it saw no floor); floor still, as a
     # step's edge is
-    crossing = _free_steps((state == FREE) & (is_floor | ~stood), floor_height,
-                           robot.step_height, stood)
+    crossing = nk.free_steps((state == FREE) & (is_floor | ~stood), floor_height,
+                             robot.step_height, stood)
     state[crossing] = OBSTACLE
     return Segmentation(origin=layers.origin, resolution=res, robot=robot,
                         floor_height=floor_height,
@@ -928,28 +928,6 @@ def _between(mask: np.ndarray) -> np.ndarray:
     out = np.zeros(mask.shape, bool)
     np.logical_and(mask[:, :-2], mask[:, 2:], out=out[:, 1:-1])
     out[1:-1] |= mask[:-2] & mask[2:]
-    return out
-
-
-def _free_steps(free: np.ndarray, floor_height: np.ndarray, step: float,
-                stood: np.ndarray) -> np.ndarray:
-    """One cell of each pair of `free` cells side by side (8 neighbours) whose floors lie
-    more than `step` apart: the lower, as at a drop-off's rim and a raised floor's foot,
-    or the upper where the robot stood on the lower."""
-    height = np.where(free, floor_height, np.nan)
-    upper, lower = _above_beside(height, step), _above_beside(-height, step)
-    return lower & ~stood | upper & ~stood & morphology.dilate(lower & stood)
-
-
-def _above_beside(height: np.ndarray, step: float) -> np.ndarray:
-    """Cells more than `step` above a cell beside them (8 neighbours; NaN: none)."""
-    ny, nx = height.shape
-    padded = np.pad(height, 1, constant_values=np.nan)
-    out = np.zeros((ny, nx), bool)
-    with np.errstate(invalid="ignore"):
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                out |= height - padded[1 + dy:1 + dy + ny, 1 + dx:1 + dx + nx] > step
     return out
 
 

@@ -17,7 +17,8 @@ from hypothesis.extra.numpy import arrays
 from benchmarks.bench_hazards import ROBOT, hazard_run, mapped
 from benchmarks.random_rooms import terrain_room
 from scanmap.navigation import DROP_OFF, FREE
-from scanmap.navigation.floor import _free_steps
+from scanmap.navigation._kernels import free_steps as free_steps_kernel
+from scanmap.navigation.morphology import dilate
 from scanmap_driver.sim import Scene, builtin_scene
 from scanmap_driver.sim.scene import FloorRegion
 
@@ -65,18 +66,35 @@ def free_steps(seg) -> int:
     return step_pairs(np.where(seg.state == FREE, seg.floor_height, np.nan))
 
 
+def free_steps_reference(free, heights, step, stood):
+    """`_kernels.free_steps` in numpy: each cell against its neighbours shifted in."""
+    ny, nx = free.shape
+    padded = np.pad(np.where(free, heights, np.nan), 1, constant_values=np.nan)
+    centre = padded[1:-1, 1:-1]
+    upper, lower = np.zeros((ny, nx), bool), np.zeros((ny, nx), bool)
+    with np.errstate(invalid="ignore"):
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                other = padded[1 + dy:1 + dy + ny, 1 + dx:1 + dx + nx]
+                upper |= centre - other > step
+                lower |= other - centre > step
+    return lower & ~stood | upper & ~lower & ~stood & dilate(lower & stood)
+
+
 @settings(max_examples=100, deadline=None)
 @given(heights=arrays(np.float32, st.tuples(st.integers(1, 8), st.integers(1, 8)),
                       elements=st.sampled_from([0.0, 0.04, -0.03, -0.12, 0.2, np.nan])),
        data=st.data())
 def test_the_rule_leaves_no_free_cells_side_by_side_a_step_apart(heights, data):
     """Of every such pair one leaves FREE, never a cell the robot stood on (a pair it
-    stood on both of stays)."""
+    stood on both of stays); as the plain numpy search takes them."""
     stood = data.draw(arrays(np.bool_, heights.shape))
-    free = ~np.isnan(heights)
-    taken = _free_steps(free, heights, ROBOT.step_height, stood)
+    free = data.draw(arrays(np.bool_, heights.shape))
+    taken = free_steps_kernel(free, heights, ROBOT.step_height, stood)
+    assert np.array_equal(taken, free_steps_reference(free, heights, ROBOT.step_height,
+                                                      stood))
     assert not (taken & (stood | ~free)).any()
-    assert step_pairs(np.where(taken, np.nan, heights), stood) == 0
+    assert step_pairs(np.where(free & ~taken, heights, np.nan), stood) == 0
 
 
 def test_the_step_down_to_a_sunken_floor_is_no_drop_off_once_reached_and_never_crossed():
