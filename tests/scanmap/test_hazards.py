@@ -27,6 +27,8 @@ from scanmap.navigation.floor import FloorConfig, RobotShape
 from scanmap.navigation.obstacles import ObstacleMap, ObstacleSnapshot, QueryStatus
 from scanmap_driver.sim import RASTER_DROP_OFF, RASTER_FLOOR, Scene, builtin_scene, truth_raster
 
+from .test_step_to_floor import step_pairs
+
 SCANS = None  # every pose of the scene
 
 
@@ -366,6 +368,15 @@ def test_black_carpet_is_never_free_inside(hazards):
     inner = inner_cells(seg, carpet)
     assert inner.sum() > 100
     assert not (seg.state[inner] == FREE).any()
+
+
+def test_no_free_floor_seen_lies_a_step_from_free_floor_seen_beside_it(any_scene):
+    # FREE to FREE across a ramp's raised side or end, up to 20 pairs of cells with hits
+    # a scan in `hazards` and 9 in `workshop`, until the lower of each was an edge
+    _, steps, _ = any_scene
+    for step, _ in steps:
+        seen = (step.seg.state == FREE) & (step.layers.nlev > 0)
+        assert step_pairs(np.where(seen, step.seg.floor_height, np.nan)) == 0
 
 
 def test_drop_offs_are_lethal_and_an_obstacle_to_every_query(any_scene):
