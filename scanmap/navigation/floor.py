@@ -52,11 +52,7 @@ below the floor height around it, or where rays passed more than a step below it
 floor is not where it must be; among floor hits, seen from them down unbroken, not one
 noisy hit), and below the floor where the robot stood nearest, is a
 DROP_OFF (a trench no lower than that floor, behind a ramp's raised top or beside a
-platform, may be reached round its ends: UNKNOWN until seen), unless floor lies within
-`drop_reach` of it more than a step below the floor it was judged against, and nothing
-in it lies more than a step below that floor (a step down to a sunken floor the robot
-reaches round its ends, by a ramp: the floor there is not missing; an OBSTACLE, as a
-step's edge); the drop-off spreads up to
+platform, may be reached round its ends: UNKNOWN until seen); the drop-off spreads up to
 `drop_reach` through cells without any hit that touch no hit but the drop-off's own and
 do not lie between two floor cells at most `max_hole` apart (the shadow of the rim: not
 the gaps between the laser's samples, nor the shadow of an object standing beside the
@@ -71,7 +67,12 @@ edge lies anywhere up to the next line) but not away from where the robot stood,
 cells that show it (past a hole's far wall the floor is lit, its unlit cells are gaps
 between the lines), and towards it only across the rim's shadow (`rim_shadow`): rays
 that cross the floor's height at a hole's near rim pass below it only farther on.
-DROP_OFF is never free and lethal in the costmap.
+DROP_OFF is never free and lethal in the costmap. Where floor lies within `drop_reach`
+of a cell showing it more than a step below the floor the cell was judged against, and
+nothing in the cell lies more than a step below that floor, the cell is the face of a
+step down to a floor the robot reaches round its ends (a sunken floor joined by a ramp:
+the floor there is not missing): it and the cells its spread joined are an OBSTACLE, as
+a step's edge is, not a DROP_OFF.
 
 No return is not free: a cell is FREE only where the floor was seen - a floor hit in the
 cell - or is known otherwise: the cells the robot's footprint overlaps at the poses it
@@ -604,11 +605,10 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         drop &= nk.below_floor(layers.levels, layers.nlev, layers.seen,
                                _stood_floor(lowest, floor_height, nearest), robot.step_height,
                                layers.z_min, layers.mask_dz, one_surface)
-    if drop.any():  # a step down to floor reached round its ends: an edge, not a drop-off
-        sunk = _step_to_floor(layers, drop, is_floor, floor_height, lowest, robot.step_height,
-                              round(params.drop_reach / res))
-        edges |= sunk
-        drop &= ~sunk
+    # a step down to floor reached round its ends: spread as a drop-off is (its shadow is
+    # no place to drive either), then an edge, not a drop-off (below)
+    sunk = _step_to_floor(layers, drop, is_floor, floor_height, lowest, robot.step_height,
+                          round(params.drop_reach / res)) if drop.any() else drop
     seeds = drop.copy()
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
@@ -730,7 +730,11 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     state[(state == FREE) & unlit] = UNKNOWN
     state[edges] = OBSTACLE  # floor on both sides, a step the robot cannot take between
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
-    state[drop & (state != OBSTACLE)] = DROP_OFF
+    # the face of a step down to floor reached round its ends and the shadow it spread
+    # into are an edge: the floor there is not missing, but no robot crosses it
+    step_down = morphology.geodesic_dilate(sunk, drop, ny * nx) if sunk.any() else sunk
+    state[drop & ~step_down & (state != OBSTACLE)] = DROP_OFF
+    state[step_down] = OBSTACLE
     state[_pinholes(state, layers.nlev, round(params.max_pinhole / res)) & ~dim] = FREE
     # Floor on one or two hits within two cells of a drop-off or a dip (a hole's far
     # wall seen only at its top): at the laser's noise a rim's or far wall's hits land up
@@ -742,7 +746,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # with the floor round it (a dip only against the ramp rising beside it): the ramp's
     # cells beside them, crossed by one laser line or two, were left UNKNOWN
     scant = (layers.counts[:, :, 0, gk.HITS] <= 2) & (layers.nlev > 0) & ~stood
-    dropped = state == DROP_OFF  # the rules below only take FREE cells to UNKNOWN
+    dropped = (state == DROP_OFF) | step_down  # the rules below only take FREE to UNKNOWN
     beside_unseen = dips & morphology.dilate(layers.nlev == 0)
     if beside_unseen.any():
         beside_unseen &= _below_all_floor(layers.nlev, bottom, is_floor & ~dips, 0.0)
