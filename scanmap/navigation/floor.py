@@ -608,7 +608,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # a step down to floor reached round its ends: spread as a drop-off is (its shadow is
     # no place to drive either), then an edge, not a drop-off (below)
     sunk = _step_to_floor(layers, drop, is_floor, floor_height, lowest, robot.step_height,
-                          round(params.drop_reach / res)) if drop.any() else drop
+                          round(params.drop_reach / res)) \
+        if drop.any() else np.zeros((ny, nx), bool)  # not `drop`: it grows in place
     seeds = drop.copy()
     holes = _small_holes(layers.nlev, is_floor, floor_height, drop,
                          round(params.max_hole / res), robot.step_height)
