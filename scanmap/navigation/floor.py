@@ -605,9 +605,12 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         drop &= nk.below_floor(layers.levels, layers.nlev, layers.seen,
                                _stood_floor(lowest, floor_height, nearest), robot.step_height,
                                layers.z_min, layers.mask_dz, one_surface)
+    bottom = np.ascontiguousarray(layers.levels[:, :, 0, gk.LO])  # of each lowest level
+    lowest_free = nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz)
     # a step down to floor reached round its ends: spread as a drop-off is (its shadow is
     # no place to drive either), then an edge, not a drop-off (below)
-    sunk = _step_to_floor(layers, drop, is_floor, floor_height, lowest, robot.step_height,
+    sunk = _step_to_floor(layers.nlev, bottom, lowest_free + layers.mask_dz, drop, is_floor,
+                          floor_height, lowest, robot.step_height,
                           round(params.drop_reach / res)) \
         if drop.any() else np.zeros((ny, nx), bool)  # not `drop`: it grows in place
     seeds = drop.copy()
@@ -656,10 +659,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
     # (not the foot of a surface a ray ended on) the laser should have lit it
-    probed = nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz) \
-        <= floor_height + params.floor_probe
+    probed = lowest_free <= floor_height + params.floor_probe
     bare = ~morphology.max_filter(layers.nlev > 0, 3)
-    bottom = np.ascontiguousarray(layers.levels[:, :, 0, gk.LO])  # of each lowest level
     dips = _dips(layers.nlev, bottom, is_floor, params.plane_tolerance)
     holes |= _lit_gaps(bare & ~is_floor & ~stood & ~assumed, layers.nlev, is_floor,
                        floor_height, drop, dips, round(params.max_hole / res),
@@ -782,12 +783,11 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # wall's hits landed inside the hole (rendered mixed room 3), or a strip a cell wide
     # between two holes that no robot drives
     state[(state == FREE) & ~stood & _between(dropped)] = UNKNOWN
-    # Two FREE cells side by side whose floors differ by more than a step (the face of a
-    # step down to floor reached round its ends, on their boundary or seen from its top
-    # only): no robot crosses there, the lower one is an edge (terrain rooms, the side of
-    # a ramp down to a sunken floor: free to free, 10-12 cm apart; a ramp's raised side)
-    # (not the heights carried under the robot where it saw no floor); floor still, as a
-    # step's edge is
+    # Two FREE cells side by side whose floors differ by more than a step (a step's face
+    # on their boundary, or seen from its top only: a ramp's raised or sunken side, 10-12
+    # cm in terrain rooms): no robot crosses there, so the lower one is an edge, floor
+    # still as a step's edge is. The heights carried under the robot where it saw no
+    # floor are left out
     crossing = nk.free_steps((state == FREE) & (is_floor | ~stood), floor_height,
                              robot.step_height, stood)
     state[crossing] = OBSTACLE
@@ -936,17 +936,16 @@ def _between(mask: np.ndarray) -> np.ndarray:
     return out
 
 
-def _step_to_floor(layers: CellLayers, drop: np.ndarray, is_floor: np.ndarray,
-                   floor_height: np.ndarray, lowest: np.ndarray, step: float, reach: int
-                   ) -> np.ndarray:
+def _step_to_floor(nlev: np.ndarray, bottom: np.ndarray, free_top: np.ndarray,
+                   drop: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarray,
+                   lowest: np.ndarray, step: float, reach: int) -> np.ndarray:
     """Cells of `drop` beside floor more than a step below the floor they were judged
     against (`lowest`), within `reach` cells, that hold nothing lower than a step under
-    it: the face of a step down to a floor the robot reaches round its ends (a sunken
-    floor joined by a ramp), which is floor, not missing."""
+    it (their lowest level's `bottom`, the top of their lowest bin seen free, `free_top`:
+    the floor lies under it): the face of a step down to a floor the robot reaches round
+    its ends (a sunken floor joined by a ramp), which is floor, not missing."""
     lower = morphology.min_filter(np.where(is_floor, floor_height, np.inf), 2 * reach + 1)
-    bottom = np.where(layers.nlev > 0, layers.levels[:, :, 0, gk.LO], np.inf)
-    deepest = np.fmin(bottom, nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz)
-                      + layers.mask_dz)  # a bin seen free: the floor lies under its top
+    deepest = np.fmin(np.where(nlev > 0, bottom, np.inf), free_top)
     return drop & (lower < lowest - step) & (deepest >= lower - step)
 
 
