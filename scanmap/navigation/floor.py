@@ -263,7 +263,15 @@ class FloorConfig:
     blind_range: the nearest floor (m) the scanner sees from where it stands (1.49 m for
     the reference scanner, its camera 1 m up): a drop-off's spread keeps to the line of
     sight from the nearest place the robot stood through a cell showing it only where
-    that place lies at least this far off (nearer, it was seen from elsewhere).
+    that place lies at least this far off. Nearer, it was seen from elsewhere: from one
+    of the places the robot stood blind_range to view_range off (any), whose line of
+    sight and ranges then bound it, the rim's shadow reaching nearer by d /
+    (emitter_height + d) of the range of a cell showing the floor missing d deep (at
+    least rim_shadow).
+    view_range: the farthest floor (m) the scanner sees (the reference scanner's
+    max_range). emitter_height: the laser emitter's height (m) over the floor (0.5 m on
+    the reference scanner): its light over a rim reaches d below the floor at
+    (emitter_height + d) / emitter_height times the rim's range.
     """
 
     thickness: float = 0.06
@@ -292,6 +300,8 @@ class FloorConfig:
     min_logodds: float = 0.2
     max_pinhole: float = 0.15
     blind_range: float = 1.5
+    view_range: float = 4.0
+    emitter_height: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -631,8 +641,13 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # max_gap and a cell from the line of sight through a cell showing it: along a
         # far wall seen aslant it ran on past the wall's end, in rendered frames as far
         # as 5 cells into the unlit floor beyond); a cell showing it nearer than
-        # blind_range to every place the robot stood was seen from farther off, and
-        # the nearest place gives no line of sight
+        # blind_range to every place the robot stood was seen from farther off: from one
+        # of the places blind_range to view_range off, any, each giving its line of
+        # sight and bounds, the rim's shadow as deep as the laser's light over the rim
+        # leaves it (`_shadow_share`: ramp room 1's pit, 27 cm deep, seen from its path
+        # 2-4 m on, holds hits 7-13 cells beyond its near rim). Spread without a line of
+        # sight, mixed room 5017's pit at 0.3 px took the floor round its corner 2 cells
+        # towards the path the robot passed it by
         near = ranges * (1.0 - params.rim_shadow) - 1.0  # the rim's shadow, a cell more
         viewed_from = np.where(ranges >= params.blind_range / res, nearest, -1)
         # Sideways only between two lines that show it, a cell past the outermost: out to
@@ -640,9 +655,14 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # edge lies anywhere up to the next line, which on rendered frames far off often
         # returned nothing: up to 4 cells of floor taken)
         gap = 0.5 * params.max_gap / res + 1.0
+        elsewhere = morphology.Viewpoints(
+            np.column_stack(_stood_rows_cols(layers)).astype(np.float64),
+            params.blind_range / res, params.view_range / res,
+            np.minimum(_shadow_share(lowest, bottom, lowest_free, params.emitter_height),
+                       1.0 - params.rim_shadow), 0.5)
         spread = np.logical_and(*(morphology.dilate_in_range(
             drop, shadow, ranges, near, ranges + 0.5, max(round(params.drop_reach / res), 1),
-            viewed_from, sides) for sides in ((1.0, gap), (gap, 1.0))))
+            viewed_from, sides, elsewhere) for sides in ((1.0, gap), (gap, 1.0))))
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there:
         # not a cell on from it, beside it in a row or a column, as at a hole's side wall),
@@ -654,7 +674,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
             known, (layers.nlev > 0) | drop | _beyond_spans(known, 2), floor_height, 2,
             robot.step_height, False, nk.NO_SAMPLES)
         drop |= morphology.dilate_in_range(spread & ~seeds, rim, ranges, near, ranges, 1,
-                                           viewed_from, 0.5)
+                                           viewed_from, 0.5, elsewhere._replace(above=0.0))
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
@@ -925,6 +945,20 @@ def _ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
     if not cells.any():
         return np.zeros(layers.shape, np.float32), np.full(layers.shape, -1, np.int64)
     return distance_transform(cells)
+
+
+def _shadow_share(floor: np.ndarray, bottom: np.ndarray, lowest_free: np.ndarray,
+                  emitter_height: float) -> np.ndarray:
+    """Per cell, the least share of its range from the scanner at which the rim of a
+    drop-off it shows below `floor` may lie: the laser's light (from `emitter_height`
+    up) over the rim reaches depth d below the floor at (emitter_height + d) /
+    emitter_height times the rim's range, d the deepest the cell shows (its lowest
+    level's `bottom`, or the lowest bin rays saw free in it, `lowest_free`); 1 where it
+    shows nothing below."""
+    with np.errstate(invalid="ignore"):
+        deepest = np.fmin(bottom, np.where(np.isfinite(lowest_free), lowest_free, np.nan))
+        depth = np.nan_to_num(np.clip(floor - deepest, 0.0, None), nan=0.0)
+    return emitter_height / (emitter_height + depth)
 
 
 def _between(mask: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -109,10 +110,25 @@ def _row_max(values: np.ndarray, out: np.ndarray, reach: int) -> None:
         _or_into(out[shift:], values[:nx - shift])
 
 
+class Viewpoints(NamedTuple):
+    """Places a seed of `dilate_in_range` seen from no cell may have been seen from:
+    `cells` (K, 2) their rows and columns, those `nearest` to `farthest` cells off the
+    seed; from such a place p a cell c lies in the bounds of seed s when share[s] * |p s|
+    - 1 <= |p c| <= |p s| + `above` (`share`, per cell: how much nearer than the seed its
+    rim's shadow may reach)."""
+
+    cells: np.ndarray
+    nearest: float
+    farthest: float
+    share: np.ndarray
+    above: float
+
+
 def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
                     low: np.ndarray, high: np.ndarray, steps: int,
                     viewed_from: np.ndarray | None = None,
-                    lateral: float | tuple[float, float] = math.inf) -> np.ndarray:
+                    lateral: float | tuple[float, float] = math.inf,
+                    elsewhere: Viewpoints | None = None) -> np.ndarray:
     """`geodesic_dilate` of `seeds` through the cells of `within` whose value in `ranges`
     lies in the bounds (`low`, `high`) of the seed they came from (the widest, where two
     seeds reach a cell at the same depth): a drop-off's spread kept to the ranges from
@@ -120,14 +136,21 @@ def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
     index of the cell it was seen from, -1 for none), also within `lateral` cells of the
     line of sight through the seed they came from (the first to reach them): between the
     scanner's lines, not along a far wall seen aslant; a pair (right, left) bounds each
-    side apart (`_off_sight`'s sign)."""
+    side apart (`_off_sight`'s sign). A seed seen from no cell but with places of
+    `elsewhere` in reach instead keeps to its range bounds and lateral cells from one of
+    them (any); with none in reach, to `low` and `high` alone."""
     if viewed_from is None:
         viewed_from = np.full(seeds.shape, -1, np.int64)
+    if elsewhere is None:
+        elsewhere = Viewpoints(np.zeros((0, 2)), 0.0, 0.0, np.ones(seeds.shape), 0.0)
     right, left = lateral if isinstance(lateral, tuple) else (lateral, lateral)
     return _breadth_first(np.ascontiguousarray(seeds, dtype=np.bool_),
                           np.ascontiguousarray(within, dtype=np.bool_), steps, ranges, low,
                           high, np.ascontiguousarray(viewed_from, dtype=np.int64),
-                          float(right), float(left))
+                          float(right), float(left),
+                          np.ascontiguousarray(elsewhere.cells, dtype=np.float64),
+                          np.ascontiguousarray(elsewhere.share, dtype=np.float64),
+                          np.array([elsewhere.nearest, elsewhere.farthest, elsewhere.above]))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -142,10 +165,34 @@ def _off_sight(seed: int, viewed_from: int, y: int, x: int, nx: int) -> float:
     return (dx * (y - py) - dy * (x - px)) / math.sqrt(dy * dy + dx * dx)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _seen_from_one(places: np.ndarray, share: float, bounds: np.ndarray, seed: int, y: int,
+                   x: int, nx: int, right: float, left: float) -> int:
+    """For a seed seen from no cell: 1 when cell (y, x) lies in its bounds and lateral
+    cells from one of the `places` in reach of it (`Viewpoints`: its `share`; bounds holds
+    nearest, farthest, above), 0 when from none, -1 when none is in reach."""
+    nearest, farthest, above = bounds[0], bounds[1], bounds[2]
+    sy, sx = seed // nx, seed % nx
+    found = -1
+    for k in range(places.shape[0]):
+        py, px = places[k, 0], places[k, 1]
+        dy, dx, ey, ex = sy - py, sx - px, y - py, x - px
+        reach = math.sqrt(dy * dy + dx * dx)
+        if not (nearest <= reach <= farthest and reach > 0.0):
+            continue
+        found = 0
+        there = math.sqrt(ey * ey + ex * ex)
+        side = (dx * ey - dy * ex) / reach
+        if share * reach - 1.0 <= there <= reach + above and -right <= side <= left:
+            return 1
+    return found
+
+
 @njit(cache=True, nogil=True)
 def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np.ndarray,
                    low: np.ndarray, high: np.ndarray, viewed_from: np.ndarray,
-                   right: float, left: float) -> np.ndarray:
+                   right: float, left: float, places: np.ndarray, share: np.ndarray,
+                   bounds: np.ndarray) -> np.ndarray:
     """`dilate_in_range`: one pass from a queue of the seeds, each cell carrying the bounds
     and the sight line of the seed it came from."""
     ny, nx = seeds.shape
@@ -175,9 +222,14 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
         sight = viewed_from.flat[seed]
         for yy in range(max(y - 1, 0), min(y + 2, ny)):
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
-                if not within[yy, xx] or not lo <= ranges[yy, xx] <= hi:
+                if not within[yy, xx]:
                     continue
-                if not -right <= _off_sight(seed, sight, yy, xx, nx) <= left:
+                placed = _seen_from_one(places, share.flat[seed], bounds, seed, yy, xx, nx,
+                                        right, left) if sight < 0 else -1
+                if placed == 0:
+                    continue
+                if placed < 0 and not (lo <= ranges[yy, xx] <= hi and -right <= _off_sight(
+                        seed, sight, yy, xx, nx) <= left):
                     continue
                 n = yy * nx + xx
                 if not out[yy, xx]:

@@ -1,6 +1,7 @@
 """How far a drop-off spreads through the unlit cells round the cells that show it
 (`morphology.dilate_in_range`): against ndimage and a plain level-by-level search, and on
-the simulator's `hazards` scene, beyond a hole seen from one side."""
+the simulator's `hazards` scene, beyond a hole seen from one side, and beside a pit the
+robot passed nearer than the scanner sees the floor."""
 
 from __future__ import annotations
 
@@ -10,7 +11,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy import ndimage
 
-from benchmarks.bench_hazards import ROBOT, mapped, truth_classes
+from benchmarks.bench_hazards import ROBOT, hazard_run, mapped, truth_classes
+from benchmarks.random_rooms import mixed_room
 from scanmap.navigation import DROP_OFF, morphology
 from scanmap_driver.sim import RASTER_FLOOR, builtin_scene, truth_raster
 
@@ -96,6 +98,62 @@ def test_from_one_seed_it_keeps_to_the_seeds_line_of_sight(data, steps, right, l
         morphology.dilate_in_range(seeds, within, ranges, low, high, steps, viewed_from,
                                    lateral),
         spread_reference(seeds, within & bounded, ranges, low, high, steps))
+
+
+@settings(max_examples=80, deadline=None)
+@given(data=st.data(), steps=st.integers(1, 10), right=st.floats(0.0, 5.0),
+       left=st.floats(0.0, 5.0), share=st.floats(0.0, 1.0), above=st.sampled_from([0.0, 0.5]))
+def test_a_seed_seen_from_no_cell_keeps_to_a_place_in_reach(data, steps, right, left, share,
+                                                             above):
+    """One seed seen from no cell, with places it may have been seen from: the plain
+    search through the cells of `within` that one of the places `nearest` to `farthest`
+    cells off the seed puts within the seed's bounds from it (its share of the seed's
+    range less a cell to that range and `above`) and within `right` and `left` of its line
+    of sight through the seed (closed form); with none that far off, through those in the
+    seed's own bounds."""
+    ny, nx = data.draw(shapes)
+    within = data.draw(arrays(np.bool_, (ny, nx)))
+    ranges = data.draw(arrays(np.float32, (ny, nx), elements=st.integers(0, 6)))
+    sy, sx = data.draw(st.integers(0, ny - 1)), data.draw(st.integers(0, nx - 1))
+    count = data.draw(st.integers(0, 4))
+    places = np.column_stack([data.draw(arrays(np.int64, count, elements=st.integers(
+        0, size - 1))) for size in (ny, nx)]).astype(np.float64).reshape(count, 2)
+    nearest = data.draw(st.floats(0.0, 8.0))
+    farthest = nearest + data.draw(st.floats(0.0, 12.0))
+    seeds = np.zeros((ny, nx), bool)
+    seeds[sy, sx] = True
+    shares = np.full((ny, nx), 2.0)  # only the seed's share counts
+    shares[sy, sx] = share
+    low, high = ranges - 2.0, ranges + 2.0
+    y, x = np.mgrid[:ny, :nx]
+    allowed, in_reach = np.zeros((ny, nx), bool), False
+    for py, px in places:
+        reach = np.sqrt((sy - py) * (sy - py) + (sx - px) * (sx - px))
+        if not (nearest <= reach <= farthest and reach > 0.0):
+            continue
+        in_reach = True
+        there = np.sqrt((y - py) * (y - py) + (x - px) * (x - px))
+        side = ((sx - px) * (y - py) - (sy - py) * (x - px)) / reach
+        allowed |= (share * reach - 1.0 <= there) & (there <= reach + above) \
+            & (-right <= side) & (side <= left)
+    expected = spread_reference(seeds, within & allowed, ranges, low - np.inf,
+                                high + np.inf, steps) if in_reach \
+        else spread_reference(seeds, within, ranges, low, high, steps)
+    elsewhere = morphology.Viewpoints(places, nearest, farthest, shares, above)
+    assert np.array_equal(
+        morphology.dilate_in_range(seeds, within, ranges, low, high, steps,
+                                   np.full((ny, nx), -1, np.int64), (right, left), elsewhere),
+        expected)
+
+
+def test_a_pit_passed_nearer_than_the_scanner_sees_spreads_no_farther_than_seen():
+    # Fresh mixed room 5017 at 0.3 px: the robot passed 1.07 m from its pit's corner,
+    # nearer than the floor the scanner sees (`blind_range`), and from there the corner's
+    # spread had no line of sight: it ran over the unlit floor towards the path, 2.04
+    # cells past the true edge after the last scan
+    run = hazard_run(scene=mixed_room(5017), pixel_sigma=0.3)
+    assert run["edge_error_cells"] <= 1.0
+    assert run["drop_free_any_scan"] == 0
 
 
 def test_the_floor_beyond_a_hole_seen_from_one_side_is_never_a_drop_off():
