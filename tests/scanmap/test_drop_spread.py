@@ -14,6 +14,7 @@ from scipy import ndimage
 from benchmarks.bench_hazards import ROBOT, hazard_run, mapped, truth_classes
 from benchmarks.random_rooms import mixed_room
 from scanmap.navigation import DROP_OFF, morphology
+from scanmap.navigation.floor import _shadow_share
 from scanmap_driver.sim import RASTER_FLOOR, builtin_scene, truth_raster
 
 SQUARE = np.ones((3, 3), bool)
@@ -144,6 +145,17 @@ def test_a_seed_seen_from_no_cell_keeps_to_a_place_in_reach(data, steps, right, 
         morphology.dilate_in_range(seeds, within, ranges, low, high, steps,
                                    np.full((ny, nx), -1, np.int64), (right, left), elsewhere),
         expected)
+
+
+def test_the_rims_shadow_is_as_deep_as_the_lasers_light_over_the_rim_leaves_it():
+    # Light from 0.5 m up over a rim at range r reaches d below the floor at (0.5 + d) /
+    # 0.5 r: the rim lies at 0.5 / (0.5 + d) of the range of what it lit there, d the
+    # deepest a cell shows (its lowest level's bottom, or the lowest bin seen free)
+    floor = np.zeros(5)
+    bottom = np.array([-0.268, np.nan, -0.1, np.nan, 0.02])
+    lowest_free = np.array([-np.inf, -0.2, -0.3, -np.inf, 0.1])
+    share = _shadow_share(floor, bottom, lowest_free, 0.5)
+    assert np.allclose(share, [0.5 / 0.768, 0.5 / 0.7, 0.5 / 0.8, 1.0, 1.0])
 
 
 def test_a_pit_passed_nearer_than_the_scanner_sees_spreads_no_farther_than_seen():
