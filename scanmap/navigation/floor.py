@@ -658,8 +658,8 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         elsewhere = morphology.Viewpoints(
             np.column_stack(_stood_rows_cols(layers)).astype(np.float64),
             params.blind_range / res, params.view_range / res,
-            np.minimum(_shadow_share(lowest, bottom, lowest_free, params.emitter_height),
-                       1.0 - params.rim_shadow), 0.5)
+            np.minimum(_shadow_share(lowest, layers.nlev, bottom, lowest_free,
+                                     params.emitter_height), 1.0 - params.rim_shadow), 0.5)
         spread = np.logical_and(*(morphology.dilate_in_range(
             drop, shadow, ranges, near, ranges + 0.5, max(round(params.drop_reach / res), 1),
             viewed_from, sides, elsewhere) for sides in ((1.0, gap), (gap, 1.0))))
@@ -947,16 +947,17 @@ def _ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
     return distance_transform(cells)
 
 
-def _shadow_share(floor: np.ndarray, bottom: np.ndarray, lowest_free: np.ndarray,
-                  emitter_height: float) -> np.ndarray:
+def _shadow_share(floor: np.ndarray, nlev: np.ndarray, bottom: np.ndarray,
+                  lowest_free: np.ndarray, emitter_height: float) -> np.ndarray:
     """Per cell, the least share of its range from the scanner at which the rim of a
     drop-off it shows below `floor` may lie: the laser's light (from `emitter_height`
     up) over the rim reaches depth d below the floor at (emitter_height + d) /
     emitter_height times the rim's range, d the deepest the cell shows (its lowest
-    level's `bottom`, or the lowest bin rays saw free in it, `lowest_free`); 1 where it
-    shows nothing below."""
+    level's `bottom` where it has `nlev` levels, or the lowest bin rays saw free in it,
+    `lowest_free`); 1 where it shows nothing below."""
     with np.errstate(invalid="ignore"):
-        deepest = np.fmin(bottom, np.where(np.isfinite(lowest_free), lowest_free, np.nan))
+        deepest = np.fmin(np.where(nlev > 0, bottom, np.nan),
+                          np.where(np.isfinite(lowest_free), lowest_free, np.nan))
         depth = np.nan_to_num(np.clip(floor - deepest, 0.0, None), nan=0.0)
     return emitter_height / (emitter_height + depth)
 

@@ -151,11 +151,12 @@ def test_the_rims_shadow_is_as_deep_as_the_lasers_light_over_the_rim_leaves_it()
     # Light from 0.5 m up over a rim at range r reaches d below the floor at (0.5 + d) /
     # 0.5 r: the rim lies at 0.5 / (0.5 + d) of the range of what it lit there, d the
     # deepest a cell shows (its lowest level's bottom, or the lowest bin seen free)
-    floor = np.zeros(5)
-    bottom = np.array([-0.268, np.nan, -0.1, np.nan, 0.02])
-    lowest_free = np.array([-np.inf, -0.2, -0.3, -np.inf, 0.1])
-    share = _shadow_share(floor, bottom, lowest_free, 0.5)
-    assert np.allclose(share, [0.5 / 0.768, 0.5 / 0.7, 0.5 / 0.8, 1.0, 1.0])
+    floor = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.115])
+    nlev = np.array([1, 0, 2, 0, 1, 0])
+    bottom = np.array([-0.268, 0.0, -0.1, 0.0, 0.02, 0.0])  # no level: the window's zeros
+    lowest_free = np.array([-np.inf, -0.2, -0.3, -np.inf, 0.1, 0.015])
+    share = _shadow_share(floor, nlev, bottom, lowest_free, 0.5)
+    assert np.allclose(share, [0.5 / 0.768, 0.5 / 0.7, 0.5 / 0.8, 1.0, 1.0, 0.5 / 0.6])
 
 
 def test_a_pit_passed_nearer_than_the_scanner_sees_spreads_no_farther_than_seen():
