@@ -76,7 +76,8 @@ within ceil(l_max / (max_misses * l_miss)) scans once it has gone.
 
 Memory layout (flat, for speed): cell `off = (slot << 2s) | (row << s) | col` with
 s = log2(tile_cells); `cells[off] = (seen-free height mask, last scan id, last unlit
-scan id, bundle key, bundle mask[, scans whose rays reached it])`, where bit b of a mask covers
+scan id, where its lowest level was seen from, bundle key, bundle mask[, scans whose rays
+reached it])`, where bit b of a mask covers
 z_min + [b, b+1) * mask_dz; `nlev[off]` levels in use; level k of the cell is record
 `off * K + k` of lev_f (lo, hi, log-odds, mean hit x, y offset from the cell centre,
 this scan's hit range, mean hit height), lev_n (hits, passes, scan stamp, scans that hit
@@ -104,11 +105,13 @@ N_INT_FIELDS = 4
 LASER_GRAZE_SIN = math.sin(math.radians(30.0))  # the laser's rays along a face (module)
 HIT_FLAG = 0x80  # lev_flag bit: hit in scan `stamp`; the low bits count its misses
 # Fields of cells[off]: observed-height mask, last scan id, last scan whose laser line
-# crossed the cell's floor unlit (`scanmap.grid.unlit`; 0 never), and the ray-bundle
-# scratch; a grid that counts visits (a submap) has a sixth, the scans whose rays
-# reached the cell (not saved: how strongly a submap saw it free).
-SEEN, SCAN, UNLIT, VKEY, VMASK, VISITS = range(6)
-N_CELL_FIELDS = 5
+# crossed the cell's floor unlit (`scanmap.grid.unlit`; 0 never), the cell the camera
+# stood over at the last hit on the cell's lowest level (`pack_cell`; 0 none: where a
+# drop-off it shows was seen from), and the ray-bundle scratch; a grid that counts
+# visits (a submap) has a seventh, the scans whose rays reached the cell (not saved:
+# how strongly a submap saw it free).
+SEEN, SCAN, UNLIT, FROM, VKEY, VMASK, VISITS = range(7)
+N_CELL_FIELDS = 6
 
 # Point classes of classify_points.
 POINT_OK, POINT_NONFINITE, POINT_OUTSIDE_WINDOW, POINT_OUTSIDE_EXTENT, POINT_TOO_FAR = range(5)
@@ -394,6 +397,16 @@ def _merge_grown(lev_f, lev_n, lev_flag, nlev, off, k, gap, levels) -> None:
     while k > 0 and lev_f[base + k - 1, HI] + gap >= lev_f[base + k, LO]:
         _merge_down(lev_f, lev_n, lev_flag, nlev, off, k - 1, levels)
         k -= 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def pack_cell(x: float, y: float, x0: float, y0: float, res: float) -> np.uint64:
+    """The grid cell holding (x, y) as one number for `cells[off, FROM]`: (row << 32 |
+    column) + 1 of the grid whose corner is (x0, y0); 0 (none) off the grid or NaN."""
+    gx, gy = (x - x0) / res, (y - y0) / res
+    if not (0.0 <= gx < 4294967295.0 and 0.0 <= gy < 4294967295.0):
+        return np.uint64(0)
+    return (np.uint64(int(gy)) << np.uint64(32) | np.uint64(int(gx))) + np.uint64(1)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -780,6 +793,8 @@ def _insert_scan(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev
             fresh[n_fresh] = off
             fresh_z[n_fresh] = z
             n_fresh += 1
+        if np.float32(z) <= lev_f[off * levels, HI]:  # on its lowest level: seen from there
+            cells[off, FROM] = pack_cell(origins[i, 0], origins[i, 1], x0, y0, res)
         if count_visits and cells[off, SCAN] != scan64:
             cells[off, VISITS] += np.uint64(1)
         cells[off, SCAN] = scan64
@@ -797,6 +812,17 @@ def _insert_scan(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev
         _consolidate(lev_f, lev_n, lev_flag, nlev, off, fresh_z[i], cells[off, SEEN], z_min,
                      mdz, levels)
     return n_hits, n_cleared, np.int64(key)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _deepest_look(seen, bits, lev_f, nlev, off, levels, z_low) -> bool:
+    """Whether a camera ray crossing cell off at height bins `bits`, down to z_low, looked
+    as deep into it as any before (its lowest bin at or below the lowest the cell's `seen`
+    mask holds) and below its every level: where a drop-off the cell shows was seen from
+    (`FROM`), as a hit on its lowest level tells in `_insert_scan`."""
+    lowest_seen = seen & (~seen + np.uint64(1))
+    return (seen == 0 or bits & (~bits + np.uint64(1)) <= lowest_seen) \
+        and (nlev[off] == 0 or z_low < lev_f[off * levels, LO])
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -821,7 +847,7 @@ def _trace_rays(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev_
     module)."""
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     z_min, mdz = fp[FP_ZMIN], fp[FP_MASK_DZ]
-    shift = ip[IP_SHIFT]
+    shift, levels = ip[IP_SHIFT], ip[IP_LEVELS]
     bundle_run = ip[IP_RUN]
     # multiplied by, not divided: a ray's set-up held twelve divisions (about 0.25 ms of a
     # 20,000-point scan's 3.6). Where a point lies on a cell's edge its cell may round
@@ -859,6 +885,7 @@ def _trace_rays(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev_
             if length_laser > 0.0:
                 t_margin_laser = fp[FP_MARGIN] / length_laser
         path[4], path[5] = dxr, dyr
+        seen_from = pack_cell(ox, oy, x0, y0, res)
         ix, iy, sx, sy, tmx, tmy, tdx, tdy, steps = _dda_setup(
             (points[i, 0] - x0) * per_res, (points[i, 1] - y0) * per_res,
             (ox - x0) * per_res, (oy - y0) * per_res)
@@ -889,6 +916,9 @@ def _trace_rays(points, origins, cls, lasers, laser_cls, tile_index, lev_f, lev_
                         cells[off, VMASK] = 0
                     cells[off, VMASK] |= bits
                     if not from_laser:
+                        if _deepest_look(cells[off, SEEN], bits, lev_f, nlev, off, levels,
+                                         pz + dzr * (t_in if dzr > 0.0 else t_out)):
+                            cells[off, FROM] = seen_from
                         cells[off, SEEN] |= bits
                     if count_visits and cells[off, SCAN] != scan64:
                         cells[off, VISITS] += np.uint64(1)
@@ -956,8 +986,11 @@ def mark_unlit(points: np.ndarray, tile_index: np.ndarray, cells: np.ndarray, x0
 def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
                    nlev: np.ndarray, cells: np.ndarray, shift: int, levels: int, ix0: int,
                    iy0: int, out_f: np.ndarray, out_n: np.ndarray, out_nlev: np.ndarray,
-                   out_seen: np.ndarray, out_scan: np.ndarray, out_unlit: np.ndarray) -> None:
-    """Copy cells [iy0, iy0+ny) x [ix0, ix0+nx) into dense arrays; absent tiles stay empty."""
+                   out_seen: np.ndarray, out_scan: np.ndarray, out_unlit: np.ndarray,
+                   out_from: np.ndarray, corner: float, res: float) -> None:
+    """Copy cells [iy0, iy0+ny) x [ix0, ix0+nx) into dense arrays; absent tiles stay empty.
+    out_from (ny, nx, 2): x, y of the centre of the cell each cell's lowest level was seen
+    from (`FROM`), of the grid whose corner is (corner, corner); left as it is without."""
     ny, nx = out_nlev.shape
     for y in range(ny):
         for x in range(nx):
@@ -969,6 +1002,10 @@ def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
             out_seen[y, x] = cells[off, SEEN]
             out_scan[y, x] = cells[off, SCAN]
             out_unlit[y, x] = cells[off, UNLIT] != 0
+            if cells[off, FROM] > 0:
+                seen_from = cells[off, FROM] - np.uint64(1)
+                out_from[y, x, 0] = corner + (float(seen_from & np.uint64(0xFFFFFFFF)) + 0.5) * res
+                out_from[y, x, 1] = corner + (float(seen_from >> np.uint64(32)) + 0.5) * res
             for k in range(n):
                 out_f[y, x, k] = lev_f[off * levels + k]
                 out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS]

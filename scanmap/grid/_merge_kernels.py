@@ -19,7 +19,8 @@ unknown at its heights, never free. Per cell, with the submap the newer observat
 2. Each submap level joins the destination level within `merge_gap` of it (extents
    joined, log-odds added and clamped, counts added, mean hit weighted by hits) or
    becomes a level of its own; levels it grew into merge, as a hit's growth merges.
-3. The observed heights are joined; the last update is the newer one.
+3. The observed heights are joined; the last update is the newer one, and so is where
+   the cell's lowest level was seen from (`FROM`, moved with the submap).
 Scan ids of the submap (its cells' last scan, its levels' stamps) move by `scan_offset`,
 so that they follow the destination's. The submap comes packed (`scanmap.grid.packed`):
 its cells found through its own tile index (`_src_offset`), its levels from each cell's
@@ -40,6 +41,7 @@ from scanmap.grid._kernels import (
     FP_X0,
     FP_Y0,
     FP_ZMIN,
+    FROM,
     HI,
     HITS,
     LO,
@@ -60,8 +62,9 @@ from scanmap.grid._kernels import (
     _open_level,
     _remove,
     height_mask,
+    pack_cell,
 )
-from scanmap.grid.packed import P_SCAN, P_SEEN, P_UNLIT, P_VISITS
+from scanmap.grid.packed import P_FROM, P_SCAN, P_SEEN, P_UNLIT, P_VISITS
 
 _U32_MAX = 4294967295.0
 
@@ -107,6 +110,18 @@ def _hit_cell(src_f, sl, sx, sy, motion, fp) -> tuple[int, int, float, float]:
     qx, qy = c * px - s * py + motion[2], s * px + c * py + motion[3]
     ix, iy = int(np.floor((qx - x0) / res)), int(np.floor((qy - y0) / res))
     return ix, iy, qx - (x0 + (ix + 0.5) * res), qy - (y0 + (iy + 0.5) * res)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _moved_cell(packed, motion, fp) -> np.uint64:
+    """`pack_cell` of the centre of the submap cell `packed` (a `FROM` field) moved by
+    `motion` into the destination."""
+    res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
+    c, s = motion[0], motion[1]
+    cell = packed - np.uint64(1)
+    px = x0 + (float(cell & np.uint64(0xFFFFFFFF)) + 0.5) * res
+    py = y0 + (float(cell >> np.uint64(32)) + 0.5) * res
+    return pack_cell(c * px - s * py + motion[2], s * px + c * py + motion[3], x0, y0, res)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -213,6 +228,8 @@ def merge_submap(src_index, src_origin, src_nlev, src_first, src_cells, src_f, s
             if src_cells[so, P_UNLIT] > 0:
                 cells[do, UNLIT] = max(cells[do, UNLIT],
                                        src_cells[so, P_UNLIT] + np.uint64(offset))
+            if src_cells[so, P_FROM] > 0:
+                cells[do, FROM] = _moved_cell(src_cells[so, P_FROM], motion, fp)
     for sy in range(src_box[1], src_box[3]):  # 2. the submap's levels
         for sx in range(src_box[0], src_box[2]):
             so = _src_offset(src_index, src_origin, sx, sy, shift)

@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from scanmap.grid.swept import SweptFrames
 
 POOL_NAMES = ("lev_f", "lev_n", "lev_flag", "nlev", "cells")
-SAVED_CELL_FIELDS = 3  # observed mask, scan id, unlit scan id; not the ray-bundle scratch
+SAVED_CELL_FIELDS = 4  # observed mask, scan id, unlit scan id, seen from; not the scratch
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,9 @@ class CellLayers:
     scan's path as `insert` was given it, else the middle of its ray origins) during the
     scans inserted since the grid was made, inside the window: floor the robot stood on.
     unlit: (ny, nx) bool, cells whose floor a laser line crossed without a return
-    (`scanmap.grid.unlit`); none if not given.
+    (`scanmap.grid.unlit`); none if not given. seen_from: (ny, nx, 2) x, y where the
+    camera stood for the last hit on each cell's lowest level (to the cell: where a
+    drop-off it shows was seen from), NaN where none is known.
     """
 
     origin: tuple[float, float]
@@ -78,10 +80,13 @@ class CellLayers:
     updated: np.ndarray
     stood: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     unlit: np.ndarray | None = None
+    seen_from: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.unlit is None:
             object.__setattr__(self, "unlit", np.zeros(self.nlev.shape, bool))
+        if self.seen_from is None:
+            object.__setattr__(self, "seen_from", np.full((*self.nlev.shape, 2), np.nan))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -490,9 +495,11 @@ class HeightGrid:
             out_seen = np.zeros((ny, nx), np.uint64)
             out_scan = np.zeros((ny, nx), np.uint64)
             out_unlit = np.zeros((ny, nx), bool)
+            out_from = np.full((ny, nx, 2), np.nan, np.float32)
             lev_f, lev_n, _, nlev, cells = self._flat_pools()
             gk.extract_window(self._tile_index, lev_f, lev_n, nlev, cells, self._shift, k,
-                              ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan, out_unlit)
+                              ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan, out_unlit,
+                              out_from, c.corner, c.resolution)
             out_updated = self._scan_times.array[out_scan]
             stood = self._stood.array
         origin = (round(c.corner + ix0 * c.resolution, 9), round(c.corner + iy0 * c.resolution, 9))
@@ -501,7 +508,8 @@ class HeightGrid:
         return CellLayers(origin=origin,
                           resolution=c.resolution, z_min=c.z_min, mask_dz=c.mask_dz,
                           levels=out_f, counts=out_n, nlev=out_nlev, seen=out_seen,
-                          updated=out_updated, stood=stood[inside], unlit=out_unlit)
+                          updated=out_updated, stood=stood[inside], unlit=out_unlit,
+                          seen_from=out_from)
 
     # -- whole-state copy (map files) --------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:
@@ -567,7 +575,7 @@ class HeightGrid:
                            "configuration")
         times = exact_array(np.asarray(state["scan_times"]), f"{source}: scan_times",
                             np.float64, MapError, allow_nan=True)  # NaN: a scan without time
-        scan_ids = np.asarray(state["cells"])[..., gk.SCAN:]  # and unlit scan ids
+        scan_ids = np.asarray(state["cells"])[..., gk.SCAN:gk.UNLIT + 1]  # and unlit ones
         if times.ndim != 1 or not len(times) or (n and scan_ids.max() >= len(times)):
             raise MapError(f"{source}: scan_times does not cover the scan ids of the cells")
         grid._allocate(coords)  # slot i holds tile coords[i]

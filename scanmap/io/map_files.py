@@ -32,9 +32,10 @@ from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap_driver.errors import MapError
 from scanmap_driver.files import atomic_path, exact_array, load_npz, save_npz
 
-FORMAT_VERSION = 4  # 2: the level record counts the scans that hit it (lev_n[..., SCANS]);
+FORMAT_VERSION = 5  # 2: the level record counts the scans that hit it (lev_n[..., SCANS]);
 # 3: a cell records the last scan whose laser line crossed its floor unlit (cells[..., UNLIT]);
-# 4: the level record keeps its mean hit's height (lev_f[..., MZ])
+# 4: the level record keeps its mean hit's height (lev_f[..., MZ]); 5: a cell records where
+# its lowest level was seen from (cells[..., FROM])
 UNKNOWN_SHADE, FREE_SHADE, OCCUPIED_SHADE = 205, 254, 0
 # The thresholds written to the YAML for readers: 254 (occ 0.0039) < 0.196 < 205 (0.19608)
 # <= 0.65 < 0 (1.0), with the strict and the inclusive comparisons alike.
@@ -262,6 +263,15 @@ def _from_version_3(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return {**arrays, "lev_f": np.concatenate([lev_f, middle[..., None]], axis=-1)}
 
 
+def _from_version_4(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A version-4 map read as version 5: where no cell's lowest level was seen from is
+    known (a drop-off then keeps to where the robot stood, `scanmap.navigation.floor`)."""
+    cells = np.asarray(arrays["cells"])
+    if cells.ndim != 3 or cells.shape[-1] != gk.FROM:
+        return arrays  # from_state names the bad shape
+    return {**arrays, "cells": np.concatenate([cells, np.zeros_like(cells[..., :1])], axis=-1)}
+
+
 def load_map(path: str | os.PathLike[str]) -> SavedMap:
     """Read a full map .npz; a corrupt, truncated or inconsistent file raises MapError."""
     required = ("format_version", "config", "resolution", "origin", "tile_coords",
@@ -272,14 +282,16 @@ def load_map(path: str | os.PathLike[str]) -> SavedMap:
             raise MapError(f"{path}: {key} must be a real number, got "
                            f"{arrays[key].dtype} of shape {arrays[key].shape}")
     version = arrays["format_version"]
-    if version not in (1, 2, 3, FORMAT_VERSION):
-        raise MapError(f"{path}: format_version {version} is not 1, 2, 3 or {FORMAT_VERSION}")
+    if version not in (1, 2, 3, 4, FORMAT_VERSION):
+        raise MapError(f"{path}: format_version {version} is not 1-{FORMAT_VERSION}")
     if version == 1:
         arrays = _from_version_1(arrays)
     if version in (1, 2):
         arrays = _from_version_2(arrays)
     if version in (1, 2, 3):
         arrays = _from_version_3(arrays)
+    if version in (1, 2, 3, 4):
+        arrays = _from_version_4(arrays)
     try:
         config = GridConfig(**json.loads(str(arrays["config"])))
     except (json.JSONDecodeError, TypeError) as exc:

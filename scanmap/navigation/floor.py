@@ -56,8 +56,10 @@ platform, may be reached round its ends: UNKNOWN until seen); the drop-off sprea
 `drop_reach` through cells without any hit that touch no hit but the drop-off's own and
 do not lie between two floor cells at most `max_hole` apart (the shadow of the rim: not
 the gaps between the laser's samples, nor the shadow of an object standing beside the
-drop-off), and from that shadow one cell on up to the rim but for the gaps between floor
-samples (below), so its edge is within a cell of the last floor seen (the cells showing
+drop-off), and from that shadow one cell on up to the rim (towards where the robot stood
+nearest, or where the grid saw the cell showing it from, `CellLayers.seen_from`) but for
+the gaps between floor samples (below), so its edge is within a cell of the last floor
+seen (the cells showing
 the drop-off themselves are where it is: no cell on from them, nor into a cell beside one
 in a row or a column, as along a hole's side wall). It spreads across the
 scanner's view (between its lines: within half of `max_gap` and a cell of the line of
@@ -519,7 +521,7 @@ def _cropped(layers: CellLayers, rows: slice, cols: slice) -> CellLayers:
         resolution=layers.resolution, z_min=layers.z_min, mask_dz=layers.mask_dz,
         levels=crop(layers.levels), counts=crop(layers.counts), nlev=crop(layers.nlev),
         seen=crop(layers.seen), updated=crop(layers.updated), stood=layers.stood,
-        unlit=crop(layers.unlit))
+        unlit=crop(layers.unlit), seen_from=crop(layers.seen_from))
 
 
 def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
@@ -660,21 +662,32 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
             params.blind_range / res, params.view_range / res,
             np.minimum(_shadow_share(lowest, layers.nlev, bottom, lowest_free,
                                      params.emitter_height), 1.0 - params.rim_shadow), 0.5)
-        spread = np.logical_and(*(morphology.dilate_in_range(
+        sources = np.empty((ny, nx), np.int64)  # the cell showing it each came from
+        spread = morphology.dilate_in_range(
             drop, shadow, ranges, near, ranges + 0.5, max(round(params.drop_reach / res), 1),
-            viewed_from, sides, elsewhere) for sides in ((1.0, gap), (gap, 1.0))))
+            viewed_from, (1.0, gap), elsewhere, sources)
+        spread &= morphology.dilate_in_range(
+            drop, shadow, ranges, near, ranges + 0.5, max(round(params.drop_reach / res), 1),
+            viewed_from, (gap, 1.0), elsewhere)
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there:
         # not a cell on from it, beside it in a row or a column, as at a hole's side wall),
         # along the line of sight through the spread cell (within half a cell of it), not
         # sideways: at a hole's corner a step sideways ran a cell past its side wall onto
         # the floor between two laser lines (rendered mixed room 4: 2.5 cells off the
-        # edge; ramp room 6 1.28, mixed room 3 1.70 cells in a scan)
+        # edge; ramp room 6 1.28, mixed room 3 1.70 cells in a scan). From a cell showing
+        # it seen from no place the robot stood, towards where that cell was seen from
+        # where the grid knows it (`CellLayers.seen_from`), not towards any place in
+        # reach: towards each, the step took a cell of floor round a hole's corner on every
+        # side (rendered random room 4006: 2.97 cells off the edge)
         rim = (layers.nlev == 0) & ~morphology.within_distance(seeds, 1.0) & ~nk.interpolated(
             known, (layers.nlev > 0) | drop | _beyond_spans(known, 2), floor_height, 2,
             robot.step_height, False, nk.NO_SAMPLES)
+        own = _seen_from_cells(layers).reshape(-1, 2)[sources]
+        own[sources < 0] = np.nan
         drop |= morphology.dilate_in_range(spread & ~seeds, rim, ranges, near, ranges, 1,
-                                           viewed_from, 0.5, elsewhere._replace(above=0.0))
+                                           viewed_from, 0.5,
+                                           elsewhere._replace(above=0.0, own=own))
     holes &= ~drop
     # Patches without any hit in or around them (3 x 3): a gap between the laser's samples
     # if the whole patch is small and inside level floor; where rays passed low over one
@@ -1004,6 +1017,15 @@ def _stood_rows_cols(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:
     rows = np.floor((stood[:, 1] - layers.origin[1]) / layers.resolution).astype(np.int64)
     inside = (cols >= 0) & (cols < nx) & (rows >= 0) & (rows < ny)
     return rows[inside], cols[inside]
+
+
+def _seen_from_cells(layers: CellLayers) -> np.ndarray:
+    """(ny, nx, 2) the row and column of the window's cells (beyond it too) where each
+    cell's lowest level was seen from (`CellLayers.seen_from`); NaN where unknown."""
+    res = layers.resolution
+    return np.stack([np.floor((layers.seen_from[..., 1] - layers.origin[1]) / res),
+                     np.floor((layers.seen_from[..., 0] - layers.origin[0]) / res)],
+                    axis=-1).astype(np.float64)
 
 
 def _stood_cells(layers: CellLayers) -> np.ndarray:

@@ -115,20 +115,23 @@ class Viewpoints(NamedTuple):
     `cells` (K, 2) their rows and columns, those `nearest` to `farthest` cells off the
     seed; from such a place p a cell c lies in the bounds of seed s when share[s] * |p s|
     - 1 <= |p c| <= |p s| + `above` (`share`, per cell: how much nearer than the seed its
-    rim's shadow may reach)."""
+    rim's shadow may reach). `own` (ny, nx, 2), where known, the row and column a seed
+    was seen from (NaN where not): that place alone then, at any distance."""
 
     cells: np.ndarray
     nearest: float
     farthest: float
     share: np.ndarray
     above: float
+    own: np.ndarray | None = None
 
 
 def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
                     low: np.ndarray, high: np.ndarray, steps: int,
                     viewed_from: np.ndarray | None = None,
                     lateral: float | tuple[float, float] = math.inf,
-                    elsewhere: Viewpoints | None = None) -> np.ndarray:
+                    elsewhere: Viewpoints | None = None,
+                    sources: np.ndarray | None = None) -> np.ndarray:
     """`geodesic_dilate` of `seeds` through the cells of `within` whose value in `ranges`
     lies in the bounds (`low`, `high`) of the seed they came from (the widest, where two
     seeds reach a cell at the same depth): a drop-off's spread kept to the ranges from
@@ -138,11 +141,16 @@ def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
     scanner's lines, not along a far wall seen aslant; a pair (right, left) bounds each
     side apart (`_off_sight`'s sign). A seed seen from no cell but with places of
     `elsewhere` in reach instead keeps to its range bounds and lateral cells from one of
-    them (any); with none in reach, to `low` and `high` alone."""
+    them (any), or from its `own` place where known; with none in reach, to `low` and
+    `high` alone. `sources`, if given ((ny, nx) int64), receives the flat index of the
+    seed each cell came from (-1 where none reached it)."""
     if viewed_from is None:
         viewed_from = np.full(seeds.shape, -1, np.int64)
     if elsewhere is None:
         elsewhere = Viewpoints(np.zeros((0, 2)), 0.0, 0.0, np.ones(seeds.shape), 0.0)
+    own = elsewhere.own if elsewhere.own is not None else np.full((*seeds.shape, 2), np.nan)
+    if sources is None:
+        sources = np.empty(seeds.shape, np.int64)
     right, left = lateral if isinstance(lateral, tuple) else (lateral, lateral)
     return _breadth_first(np.ascontiguousarray(seeds, dtype=np.bool_),
                           np.ascontiguousarray(within, dtype=np.bool_), steps, ranges, low,
@@ -150,7 +158,9 @@ def dilate_in_range(seeds: np.ndarray, within: np.ndarray, ranges: np.ndarray,
                           float(right), float(left),
                           np.ascontiguousarray(elsewhere.cells, dtype=np.float64),
                           np.ascontiguousarray(elsewhere.share, dtype=np.float64),
-                          np.array([elsewhere.nearest, elsewhere.farthest, elsewhere.above]))
+                          np.array([elsewhere.nearest, elsewhere.farthest, elsewhere.above]),
+                          np.ascontiguousarray(own, dtype=np.float64).reshape(-1, 2),
+                          sources.reshape(-1))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -192,15 +202,16 @@ def _seen_from_one(places: np.ndarray, share: float, bounds: np.ndarray, seed: i
 def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np.ndarray,
                    low: np.ndarray, high: np.ndarray, viewed_from: np.ndarray,
                    right: float, left: float, places: np.ndarray, share: np.ndarray,
-                   bounds: np.ndarray) -> np.ndarray:
+                   bounds: np.ndarray, own: np.ndarray, source: np.ndarray) -> np.ndarray:
     """`dilate_in_range`: one pass from a queue of the seeds, each cell carrying the bounds
-    and the sight line of the seed it came from."""
+    and the sight line of the seed it came from (`source`, flat, -1 for none)."""
     ny, nx = seeds.shape
     out = seeds.copy()
     queue = np.empty(ny * nx, np.int64)
     depth = np.zeros(ny * nx, np.int32)
     lows, highs = np.empty(ny * nx, np.float32), np.empty(ny * nx, np.float32)
-    source = np.empty(ny * nx, np.int64)  # the seed a queued cell came from
+    source[:] = -1
+    anywhere = np.array([0.0, np.inf, bounds[2]])  # a seed's own place: at any distance
     tail = 0
     for y in range(ny):
         for x in range(nx):
@@ -224,8 +235,13 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
                 if not within[yy, xx]:
                     continue
-                placed = _seen_from_one(places, share.flat[seed], bounds, seed, yy, xx, nx,
-                                        right, left) if sight < 0 else -1
+                placed = -1
+                if sight < 0 and own[seed, 0] == own[seed, 0]:  # its own place alone
+                    placed = _seen_from_one(own[seed:seed + 1], share.flat[seed], anywhere,
+                                            seed, yy, xx, nx, right, left)
+                elif sight < 0:
+                    placed = _seen_from_one(places, share.flat[seed], bounds, seed, yy, xx,
+                                            nx, right, left)
                 if placed == 0:
                     continue
                 if placed < 0 and not (lo <= ranges[yy, xx] <= hi and -right <= _off_sight(

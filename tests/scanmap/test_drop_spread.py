@@ -111,7 +111,8 @@ def test_a_seed_seen_from_no_cell_keeps_to_a_place_in_reach(data, steps, right, 
     cells off the seed puts within the seed's bounds from it (its share of the seed's
     range less a cell to that range and `above`) and within `right` and `left` of its line
     of sight through the seed (closed form); with none that far off, through those in the
-    seed's own bounds."""
+    seed's own bounds. Where the place it was seen from is known (`own`, anywhere, in the
+    window or not), that place alone, at any distance. Every cell reached came from it."""
     ny, nx = data.draw(shapes)
     within = data.draw(arrays(np.bool_, (ny, nx)))
     ranges = data.draw(arrays(np.float32, (ny, nx), elements=st.integers(0, 6)))
@@ -121,6 +122,9 @@ def test_a_seed_seen_from_no_cell_keeps_to_a_place_in_reach(data, steps, right, 
         0, size - 1))) for size in (ny, nx)]).astype(np.float64).reshape(count, 2)
     nearest = data.draw(st.floats(0.0, 8.0))
     farthest = nearest + data.draw(st.floats(0.0, 12.0))
+    own = np.full((ny, nx, 2), np.nan)
+    if data.draw(st.booleans()):
+        own[sy, sx] = [data.draw(st.integers(-6, ny + 6)), data.draw(st.integers(-6, nx + 6))]
     seeds = np.zeros((ny, nx), bool)
     seeds[sy, sx] = True
     shares = np.full((ny, nx), 2.0)  # only the seed's share counts
@@ -128,9 +132,10 @@ def test_a_seed_seen_from_no_cell_keeps_to_a_place_in_reach(data, steps, right, 
     low, high = ranges - 2.0, ranges + 2.0
     y, x = np.mgrid[:ny, :nx]
     allowed, in_reach = np.zeros((ny, nx), bool), False
-    for py, px in places:
+    known = np.isfinite(own[sy, sx, 0])
+    for py, px in own[sy, sx][None] if known else places:
         reach = np.sqrt((sy - py) * (sy - py) + (sx - px) * (sx - px))
-        if not (nearest <= reach <= farthest and reach > 0.0):
+        if not ((known or nearest <= reach <= farthest) and reach > 0.0):
             continue
         in_reach = True
         there = np.sqrt((y - py) * (y - py) + (x - px) * (x - px))
@@ -140,11 +145,13 @@ def test_a_seed_seen_from_no_cell_keeps_to_a_place_in_reach(data, steps, right, 
     expected = spread_reference(seeds, within & allowed, ranges, low - np.inf,
                                 high + np.inf, steps) if in_reach \
         else spread_reference(seeds, within, ranges, low, high, steps)
-    elsewhere = morphology.Viewpoints(places, nearest, farthest, shares, above)
-    assert np.array_equal(
-        morphology.dilate_in_range(seeds, within, ranges, low, high, steps,
-                                   np.full((ny, nx), -1, np.int64), (right, left), elsewhere),
-        expected)
+    elsewhere = morphology.Viewpoints(places, nearest, farthest, shares, above, own)
+    sources = np.empty((ny, nx), np.int64)
+    out = morphology.dilate_in_range(seeds, within, ranges, low, high, steps,
+                                     np.full((ny, nx), -1, np.int64), (right, left), elsewhere,
+                                     sources)
+    assert np.array_equal(out, expected)
+    assert np.array_equal(sources, np.where(out, sy * nx + sx, -1))
 
 
 def test_the_rims_shadow_is_as_deep_as_the_lasers_light_over_the_rim_leaves_it():

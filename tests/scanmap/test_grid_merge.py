@@ -150,6 +150,13 @@ def test_a_submap_moved_by_whole_cells_and_quarter_turns_is_moved_cell_for_cell(
     np.testing.assert_allclose(after.levels[..., gk.MY], turned(s * mx + c * my), atol=1e-6)
     np.testing.assert_array_equal(after.levels[..., gk.MZ], turned(before.levels[..., gk.MZ]))
     np.testing.assert_array_equal(after.seen, turned(before.seen & ~occupied_bits(before)))
+    # where each cell's lowest level was seen from moves with the submap
+    fx, fy = before.seen_from[..., 0], before.seen_from[..., 1]
+    assert np.isfinite(fx).sum() > 100
+    np.testing.assert_allclose(after.seen_from[..., 0], turned(c * fx - s * fy + dx * RES),
+                               atol=1e-4)
+    np.testing.assert_allclose(after.seen_from[..., 1], turned(s * fx + c * fy + dy * RES),
+                               atol=1e-4)
 
 
 def one_cell_level(z: float, scans: int, stamp: float = 0.0) -> HeightGrid:

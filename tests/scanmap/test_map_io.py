@@ -97,8 +97,9 @@ def test_full_map_round_trip_keeps_every_layer(tmp_path, mapped_grid):
     saved = load_map(tmp_path / "map.npz")
     bounds = (-3.1, -3.1, 3.1, 3.1)
     before, after = mapped_grid.layers(bounds), saved.grid.layers(bounds)
-    for name in ("levels", "counts", "nlev", "seen", "updated", "stood"):
+    for name in ("levels", "counts", "nlev", "seen", "updated", "stood", "seen_from"):
         np.testing.assert_array_equal(getattr(before, name), getattr(after, name))
+    assert np.isfinite(after.seen_from).any()
     assert len(after.stood) == 3  # one place per scan: known floor, as before saving
     np.testing.assert_array_equal(saved.layers["state"], layers["state"])
     assert saved.origin == (-3.1, -3.1) and saved.grid.config == mapped_grid.config
@@ -162,6 +163,25 @@ def test_a_version_3_map_loads_with_its_levels_mean_heights_at_their_middles(tmp
                                   np.delete(new["lev_f"], gk.MZ, axis=-1))
     for name in ("lev_n", "nlev", "cells", "tile_coords"):
         np.testing.assert_array_equal(old[name], new[name])
+
+
+def test_a_version_4_map_loads_with_no_cell_known_seen_from_anywhere(tmp_path, mapped_grid):
+    """Maps written before the cells kept where their lowest level was seen from still
+    load: none is known (a drop-off then keeps to where the robot stood), every other
+    layer as saved."""
+    path = tmp_path / "map.npz"
+    save_map(path, mapped_grid)
+    arrays = dict(np.load(path, allow_pickle=False))
+    arrays["format_version"] = np.array(4)
+    arrays["cells"] = np.delete(arrays["cells"], gk.FROM, axis=-1)
+    np.savez(tmp_path / "v4.npz", **arrays)
+    old = load_map(tmp_path / "v4.npz").grid
+    assert (old.state()["cells"][..., gk.FROM] == 0).all()
+    bounds = (-3.1, -3.1, 3.1, 3.1)
+    before, after = mapped_grid.layers(bounds), old.layers(bounds)
+    assert np.isnan(after.seen_from).all() and np.isfinite(before.seen_from).any()
+    for name in ("levels", "counts", "nlev", "seen", "updated", "stood", "unlit"):
+        np.testing.assert_array_equal(getattr(before, name), getattr(after, name))
 
 
 def test_corrupt_or_truncated_full_map_is_a_clear_error(tmp_path, mapped_grid):
