@@ -86,9 +86,10 @@ def test_a_scene_with_drop_offs_is_scored_on_them(tmp_path, capsys):
     assert main(["map", str(scans), "--out", str(out)]) == 0
     errors = json.loads((out / "report.json").read_text())["errors"]["map"]
     assert errors["free_cells_inside_drop_offs"] == 0
-    # the edge measured over enough cells to mean something (19 after 8 scans: the rim
-    # cells mostly over a hole are UNKNOWN, not FREE, and so no edge of a DROP_OFF's)
-    assert errors["drop_off_recall"] > 0.9 and errors["drop_off_edge_cells"] >= 15
+    # the edge measured over enough cells to mean something (19 after 8 scans, 14 since
+    # the rim step keeps to where the drop-off was seen from: the rim cells mostly over a
+    # hole are UNKNOWN, not FREE, and so no edge of a DROP_OFF's)
+    assert errors["drop_off_recall"] > 0.9 and errors["drop_off_edge_cells"] >= 12
     assert errors["drop_off_edge_error_cells"] <= 2.0 and errors["drop_off_edge_within_one"] > 0.9
     assert "drop-offs: recall" in capsys.readouterr().out
 

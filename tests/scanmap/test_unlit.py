@@ -277,7 +277,8 @@ def test_a_map_file_of_version_2_loads_without_unlit_cells(tmp_path):
     save_map(tmp_path / "map.npz", grid)
     arrays = dict(np.load(tmp_path / "map.npz", allow_pickle=False))
     arrays["format_version"] = np.array(2)
-    arrays["cells"] = np.delete(arrays["cells"], gk.UNLIT, axis=-1)
+    # a version-2 file holds neither the unlit scans nor where cells were seen from
+    arrays["cells"] = np.delete(arrays["cells"], [gk.UNLIT, gk.FROM], axis=-1)
     np.savez(tmp_path / "v2.npz", **arrays)
     old = load_map(tmp_path / "v2.npz").grid
     assert not old.layers((0.0, -1.0, 3.0, 1.0)).unlit.any()
