@@ -125,19 +125,24 @@ def test_a_map_written_before_it_kept_where_the_robot_stood_loads_without_it(
             load_map(tmp_path / "bad.npz")
 
 
+def older_map(tmp_path, grid: HeightGrid, version: int, array: str, column: int):
+    """`grid` written as a map file of format `version`, from before `array` held
+    `column` (of its last axis)."""
+    path = tmp_path / "map.npz"
+    save_map(path, grid)
+    arrays = dict(np.load(path, allow_pickle=False))
+    arrays["format_version"] = np.array(version)
+    arrays[array] = np.delete(arrays[array], column, axis=-1)
+    np.savez(tmp_path / f"v{version}.npz", **arrays)
+    return tmp_path / f"v{version}.npz"
+
+
 def test_a_version_1_map_loads_with_no_scans_counted(tmp_path, mapped_grid):
     """Maps written before the level record counted its scans still load; their levels
     count none, every other layer is as saved."""
-    path = tmp_path / "map.npz"
-    save_map(path, mapped_grid)
-    arrays = dict(np.load(path, allow_pickle=False))
-    scans = arrays["lev_n"][..., gk.SCANS]
-    assert scans.max() >= 1  # the mapped grid counted scans
-    arrays["format_version"] = np.array(1)
-    arrays["lev_n"] = np.delete(arrays["lev_n"], gk.SCANS, axis=-1)
-    np.savez(tmp_path / "v1.npz", **arrays)
-    old = load_map(tmp_path / "v1.npz").grid.state()
     new = mapped_grid.state()
+    assert new["lev_n"][..., gk.SCANS].max() >= 1  # the mapped grid counted scans
+    old = load_map(older_map(tmp_path, mapped_grid, 1, "lev_n", gk.SCANS)).grid.state()
     assert (old["lev_n"][..., gk.SCANS] == 0).all()
     np.testing.assert_array_equal(np.delete(old["lev_n"], gk.SCANS, axis=-1),
                                   np.delete(new["lev_n"], gk.SCANS, axis=-1))
@@ -149,13 +154,7 @@ def test_a_version_3_map_loads_with_its_levels_mean_heights_at_their_middles(tmp
                                                                             mapped_grid):
     """Maps written before the level record kept its mean hit's height still load: the
     middle of each level's heights stands in for it, every other layer as saved."""
-    path = tmp_path / "map.npz"
-    save_map(path, mapped_grid)
-    arrays = dict(np.load(path, allow_pickle=False))
-    arrays["format_version"] = np.array(3)
-    arrays["lev_f"] = np.delete(arrays["lev_f"], gk.MZ, axis=-1)
-    np.savez(tmp_path / "v3.npz", **arrays)
-    old = load_map(tmp_path / "v3.npz").grid.state()
+    old = load_map(older_map(tmp_path, mapped_grid, 3, "lev_f", gk.MZ)).grid.state()
     new = mapped_grid.state()
     levels = old["lev_f"]
     np.testing.assert_allclose(levels[..., gk.MZ], 0.5 * (levels[..., gk.LO] + levels[..., gk.HI]))
@@ -169,13 +168,7 @@ def test_a_version_4_map_loads_with_no_cell_known_seen_from_anywhere(tmp_path, m
     """Maps written before the cells kept where their lowest level was seen from still
     load: none is known (a drop-off then keeps to where the robot stood), every other
     layer as saved."""
-    path = tmp_path / "map.npz"
-    save_map(path, mapped_grid)
-    arrays = dict(np.load(path, allow_pickle=False))
-    arrays["format_version"] = np.array(4)
-    arrays["cells"] = np.delete(arrays["cells"], gk.FROM, axis=-1)
-    np.savez(tmp_path / "v4.npz", **arrays)
-    old = load_map(tmp_path / "v4.npz").grid
+    old = load_map(older_map(tmp_path, mapped_grid, 4, "cells", gk.FROM)).grid
     assert (old.state()["cells"][..., gk.FROM] == 0).all()
     bounds = (-3.1, -3.1, 3.1, 3.1)
     before, after = mapped_grid.layers(bounds), old.layers(bounds)
