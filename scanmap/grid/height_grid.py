@@ -65,8 +65,9 @@ class CellLayers:
     scans inserted since the grid was made, inside the window: floor the robot stood on.
     unlit: (ny, nx) bool, cells whose floor a laser line crossed without a return
     (`scanmap.grid.unlit`); none if not given. seen_from: (ny, nx, 2) x, y where the
-    camera stood for the last hit on each cell's lowest level (to the cell: where a
-    drop-off it shows was seen from), NaN where none is known.
+    camera stood when it last saw each cell's lowest level (its last hit there, or the
+    ray that looked deepest into the cell below its levels; the centre of that grid
+    cell): where a drop-off the cell shows was seen from; NaN where none is known.
     """
 
     origin: tuple[float, float]
