@@ -410,6 +410,14 @@ def pack_cell(x: float, y: float, x0: float, y0: float, res: float) -> np.uint64
 
 
 @njit(cache=True, nogil=True, inline="always")
+def unpack_cell(packed: np.uint64, x0: float, y0: float, res: float) -> tuple[float, float]:
+    """x, y of the centre of the grid cell `pack_cell` packed (not 0)."""
+    cell = packed - np.uint64(1)
+    return (x0 + (float(cell & np.uint64(0xFFFFFFFF)) + 0.5) * res,
+            y0 + (float(cell >> np.uint64(32)) + 0.5) * res)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _add_hit(lev_f, lev_n, lev_flag, nlev, off, z, ox, oy, fp, levels, scan) -> bool:
     """Record a hit at height z and offset (ox, oy) from the centre of cell off; True when
     it started a new level."""
@@ -1003,9 +1011,8 @@ def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
             out_scan[y, x] = cells[off, SCAN]
             out_unlit[y, x] = cells[off, UNLIT] != 0
             if cells[off, FROM] > 0:
-                seen_from = cells[off, FROM] - np.uint64(1)
-                out_from[y, x, 0] = corner + (float(seen_from & np.uint64(0xFFFFFFFF)) + 0.5) * res
-                out_from[y, x, 1] = corner + (float(seen_from >> np.uint64(32)) + 0.5) * res
+                out_from[y, x, 0], out_from[y, x, 1] = unpack_cell(cells[off, FROM], corner,
+                                                                   corner, res)
             for k in range(n):
                 out_f[y, x, k] = lev_f[off * levels + k]
                 out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS]

@@ -63,6 +63,7 @@ from scanmap.grid._kernels import (
     _remove,
     height_mask,
     pack_cell,
+    unpack_cell,
 )
 from scanmap.grid.packed import P_FROM, P_SCAN, P_SEEN, P_UNLIT, P_VISITS
 
@@ -118,9 +119,7 @@ def _moved_cell(packed, motion, fp) -> np.uint64:
     `motion` into the destination."""
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     c, s = motion[0], motion[1]
-    cell = packed - np.uint64(1)
-    px = x0 + (float(cell & np.uint64(0xFFFFFFFF)) + 0.5) * res
-    py = y0 + (float(cell >> np.uint64(32)) + 0.5) * res
+    px, py = unpack_cell(packed, x0, y0, res)
     return pack_cell(c * px - s * py + motion[2], s * px + c * py + motion[3], x0, y0, res)
 
 

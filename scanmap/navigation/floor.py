@@ -140,6 +140,7 @@ may hold anything there, and a map of several scans (examples/planner.py) is the
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -663,12 +664,10 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
             np.minimum(_shadow_share(lowest, layers.nlev, bottom, lowest_free,
                                      params.emitter_height), 1.0 - params.rim_shadow), 0.5)
         sources = np.empty((ny, nx), np.int64)  # the cell showing it each came from
-        spread = morphology.dilate_in_range(
-            drop, shadow, ranges, near, ranges + 0.5, max(round(params.drop_reach / res), 1),
-            viewed_from, (1.0, gap), elsewhere, sources)
-        spread &= morphology.dilate_in_range(
-            drop, shadow, ranges, near, ranges + 0.5, max(round(params.drop_reach / res), 1),
-            viewed_from, (gap, 1.0), elsewhere)
+        spread_to = functools.partial(morphology.dilate_in_range, drop, shadow, ranges, near,
+                                      ranges + 0.5, max(round(params.drop_reach / res), 1),
+                                      viewed_from)
+        spread = spread_to((1.0, gap), elsewhere, sources) & spread_to((gap, 1.0), elsewhere)
         drop |= spread
         # and from the shadow up to the rim (where the drop-off shows itself, it is there:
         # not a cell on from it, beside it in a row or a column, as at a hole's side wall),

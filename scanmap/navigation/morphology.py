@@ -231,17 +231,14 @@ def _breadth_first(seeds: np.ndarray, within: np.ndarray, steps: int, ranges: np
         y, x = cell // nx, cell % nx
         lo, hi, seed = lows[cell], highs[cell], source[cell]
         sight = viewed_from.flat[seed]
+        known = own[seed, 0] == own[seed, 0]  # its own place: that one alone
+        candidates, reach = (own[seed:seed + 1], anywhere) if known else (places, bounds)
         for yy in range(max(y - 1, 0), min(y + 2, ny)):
             for xx in range(max(x - 1, 0), min(x + 2, nx)):
                 if not within[yy, xx]:
                     continue
-                placed = -1
-                if sight < 0 and own[seed, 0] == own[seed, 0]:  # its own place alone
-                    placed = _seen_from_one(own[seed:seed + 1], share.flat[seed], anywhere,
-                                            seed, yy, xx, nx, right, left)
-                elif sight < 0:
-                    placed = _seen_from_one(places, share.flat[seed], bounds, seed, yy, xx,
-                                            nx, right, left)
+                placed = _seen_from_one(candidates, share.flat[seed], reach, seed, yy, xx,
+                                        nx, right, left) if sight < 0 else -1
                 if placed == 0:
                     continue
                 if placed < 0 and not (lo <= ranges[yy, xx] <= hi and -right <= _off_sight(
