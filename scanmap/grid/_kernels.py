@@ -996,27 +996,30 @@ def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
                    iy0: int, out_f: np.ndarray, out_n: np.ndarray, out_nlev: np.ndarray,
                    out_seen: np.ndarray, out_scan: np.ndarray, out_unlit: np.ndarray,
                    out_from: np.ndarray, corner: float, res: float) -> None:
-    """Copy cells [iy0, iy0+ny) x [ix0, ix0+nx) into dense arrays; absent tiles stay empty.
-    out_from (ny, nx, 2): x, y of the centre of the cell each cell's lowest level was seen
-    from (`FROM`), of the grid whose corner is (corner, corner); left as it is without."""
+    """Copy cells [iy0, iy0+ny) x [ix0, ix0+nx) into dense arrays, every entry written (the
+    arrays may come uninitialised: one pass over them instead of zeroing first): absent
+    tiles and unused levels are zeros. out_from (ny, nx, 2): x, y of the centre of the cell
+    each cell's lowest level was seen from (`FROM`), of the grid whose corner is (corner,
+    corner); NaN without."""
     ny, nx = out_nlev.shape
     for y in range(ny):
         for x in range(nx):
             off = _cell_offset(tile_index, ix0 + x, iy0 + y, shift)
-            if off < 0:
-                continue
-            n = nlev[off]
+            n = nlev[off] if off >= 0 else 0
             out_nlev[y, x] = n
-            out_seen[y, x] = cells[off, SEEN]
-            out_scan[y, x] = cells[off, SCAN]
-            out_unlit[y, x] = cells[off, UNLIT] != 0
-            if cells[off, FROM] > 0:
+            out_seen[y, x] = cells[off, SEEN] if off >= 0 else np.uint64(0)
+            out_scan[y, x] = cells[off, SCAN] if off >= 0 else np.uint64(0)
+            out_unlit[y, x] = off >= 0 and cells[off, UNLIT] != 0
+            out_from[y, x, 0], out_from[y, x, 1] = np.nan, np.nan
+            if off >= 0 and cells[off, FROM] > 0:
                 out_from[y, x, 0], out_from[y, x, 1] = unpack_cell(cells[off, FROM], corner,
                                                                    corner, res)
             for k in range(n):
                 out_f[y, x, k] = lev_f[off * levels + k]
                 out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS]
                 out_n[y, x, k, PASSES] = lev_n[off * levels + k, PASSES]
+            out_f[y, x, n:] = 0.0
+            out_n[y, x, n:] = np.uint32(0)
 
 
 @njit(cache=True, nogil=True)

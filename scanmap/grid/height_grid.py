@@ -490,13 +490,13 @@ class HeightGrid:
             if nx * ny > 50_000_000:
                 raise MapError(f"HeightGrid.layers: window of {nx} x {ny} cells is too large")
             k = c.levels
-            out_f = np.zeros((ny, nx, k, gk.N_FLOAT_FIELDS), np.float32)
-            out_n = np.zeros((ny, nx, k, 2), np.uint32)
-            out_nlev = np.zeros((ny, nx), np.uint8)
-            out_seen = np.zeros((ny, nx), np.uint64)
-            out_scan = np.zeros((ny, nx), np.uint64)
-            out_unlit = np.zeros((ny, nx), bool)
-            out_from = np.full((ny, nx, 2), np.nan, np.float32)
+            out_f = np.empty((ny, nx, k, gk.N_FLOAT_FIELDS), np.float32)  # all written
+            out_n = np.empty((ny, nx, k, 2), np.uint32)
+            out_nlev = np.empty((ny, nx), np.uint8)
+            out_seen = np.empty((ny, nx), np.uint64)
+            out_scan = np.empty((ny, nx), np.uint64)
+            out_unlit = np.empty((ny, nx), bool)
+            out_from = np.empty((ny, nx, 2), np.float32)
             lev_f, lev_n, _, nlev, cells = self._flat_pools()
             gk.extract_window(self._tile_index, lev_f, lev_n, nlev, cells, self._shift, k,
                               ix0, iy0, out_f, out_n, out_nlev, out_seen, out_scan, out_unlit,
