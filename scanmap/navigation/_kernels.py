@@ -491,6 +491,60 @@ def step_edges(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarray,
     return out
 
 
+@njit(cache=True, nogil=True)
+def rim_cells(levels: np.ndarray, nlev: np.ndarray, edges: np.ndarray, is_floor: np.ndarray,
+              floor_height: np.ndarray, max_step: float
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows, columns and tops of the `edges` cells with one level whose mean hit lies in
+    its upper quarter, a `floor_height` of the 3 x 3 cells round them within `max_step` of
+    that top and none more than `max_step` below it (`floor._rims`), row by row. In
+    float32 as numpy computes it on the float32 arrays (`tests`' reference)."""
+    ny, nx = nlev.shape
+    step, quarter = np.float32(max_step), np.float32(0.75)
+    count = 0
+    rows, cols = np.empty(ny * nx, np.int64), np.empty(ny * nx, np.int64)
+    tops = np.empty(ny * nx, np.float32)
+    for y in range(ny):
+        for x in range(nx):
+            if not edges[y, x] or nlev[y, x] != 1:
+                continue
+            lo, hi = levels[y, x, 0, gk.LO], levels[y, x, 0, gk.HI]
+            if not levels[y, x, 0, gk.MZ] >= lo + quarter * (hi - lo):
+                continue
+            near, below = False, False
+            for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                    if is_floor[yy, xx]:
+                        other = floor_height[yy, xx]
+                        near = near or abs(other - hi) <= step
+                        below = below or hi - other > step
+            if near and not below:
+                rows[count], cols[count], tops[count] = y, x, hi
+                count += 1
+    return rows[:count], cols[:count], tops[:count]
+
+
+def rim_cells_reference(levels: np.ndarray, nlev: np.ndarray, edges: np.ndarray,
+                        is_floor: np.ndarray, floor_height: np.ndarray, max_step: float
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`rim_cells` in numpy, for tests."""
+    rows, cols = np.nonzero(edges & (nlev == 1))
+    level = levels[rows, cols, 0]
+    lo, hi, mean = level[:, gk.LO], level[:, gk.HI], level[:, gk.MZ]
+    upper = mean >= lo + 0.75 * (hi - lo)
+    rows, cols, hi = rows[upper], cols[upper], hi[upper]
+    padded = np.pad(np.where(is_floor, floor_height, np.nan), 1, constant_values=np.nan)
+    near, below = np.zeros(len(rows), bool), np.zeros(len(rows), bool)
+    with np.errstate(invalid="ignore"):
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                other = padded[rows + 1 + dy, cols + 1 + dx]
+                near |= np.abs(other - hi) <= max_step
+                below |= hi - other > max_step
+    keep = near & ~below
+    return rows[keep], cols[keep], hi[keep]
+
+
 def step_edges_reference(levels: np.ndarray, nlev: np.ndarray, heights: np.ndarray,
                          is_floor: np.ndarray, step: float, clearance: float,
                          tolerance: float) -> np.ndarray:

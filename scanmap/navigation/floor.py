@@ -841,21 +841,7 @@ def _rims(levels: np.ndarray, nlev: np.ndarray, edges: np.ndarray, is_floor: np.
     (the face's hits beyond the rim leave the cells beyond it an edge). A face on a cell's
     boundary scatters some of its hits over it at the laser's noise, and the cells along a
     ramp's side or raised end were an obstacle where the ramp's surface covers them."""
-    rows, cols = _cells(edges & (nlev == 1))
-    level = levels[rows, cols, 0]
-    lo, hi, mean = level[:, gk.LO], level[:, gk.HI], level[:, gk.MZ]
-    upper = mean >= lo + 0.75 * (hi - lo)
-    rows, cols, hi = rows[upper], cols[upper], hi[upper]
-    padded = np.pad(np.where(is_floor, floor_height, np.nan), 1, constant_values=np.nan)
-    near, below = np.zeros(len(rows), bool), np.zeros(len(rows), bool)
-    with np.errstate(invalid="ignore"):
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                other = padded[rows + 1 + dy, cols + 1 + dx]
-                near |= np.abs(other - hi) <= max_step
-                below |= hi - other > max_step
-    keep = near & ~below
-    return rows[keep], cols[keep], hi[keep]
+    return nk.rim_cells(levels, nlev, edges, is_floor, floor_height, max_step)
 
 
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:

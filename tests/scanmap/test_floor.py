@@ -225,6 +225,29 @@ def test_step_edges_match_a_numpy_reference(seed, ny, nx, depth):
     assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 15), st.integers(1, 15), st.integers(1, 3))
+def test_rim_cells_match_a_numpy_reference(seed, ny, nx, depth):
+    rng = np.random.default_rng(seed)
+    levels = np.zeros((ny, nx, depth, gk.N_FLOAT_FIELDS), np.float32)
+    levels[..., 0, gk.LO] = rng.normal(-0.03, 0.03, (ny, nx))
+    levels[..., 0, gk.HI] = levels[..., 0, gk.LO] + rng.uniform(0.0, 0.08, (ny, nx))
+    share = rng.choice([0.5, 0.75, 0.9], (ny, nx))  # the mean hit's place, on the quarter too
+    levels[..., 0, gk.MZ] = levels[..., 0, gk.LO] + share * (levels[..., 0, gk.HI]
+                                                             - levels[..., 0, gk.LO])
+    nlev = rng.integers(0, depth + 1, (ny, nx)).astype(np.uint8)
+    heights = rng.choice([-0.06, 0.0], (ny, nx)) + rng.normal(0.0, 0.01, (ny, nx))
+    heights[rng.random((ny, nx)) < 0.2] = np.nan
+    heights = heights.astype(np.float32)
+    floor = (rng.random((ny, nx)) < 0.6) & ~np.isnan(heights)
+    edges = rng.random((ny, nx)) < 0.6
+    args = (levels, nlev, edges, floor, heights, 0.05)
+    got, want = nk.rim_cells(*args), nk.rim_cells_reference(*args)
+    for a, b in zip(got, want, strict=True):
+        assert np.array_equal(a, b)
+    assert got[2].dtype == np.float32
+
+
 @pytest.mark.parametrize(("bottom", "floor_below", "edge"), [
     (0.0, True, True),     # the whole face, from the floor below to the ramp's top
     (0.1, True, True),     # only its upper part seen (the rays saw no more of it)
