@@ -1014,12 +1014,11 @@ def extract_window(tile_index: np.ndarray, lev_f: np.ndarray, lev_n: np.ndarray,
             if off >= 0 and cells[off, FROM] > 0:
                 out_from[y, x, 0], out_from[y, x, 1] = unpack_cell(cells[off, FROM], corner,
                                                                    corner, res)
-            for k in range(n):
-                out_f[y, x, k] = lev_f[off * levels + k]
-                out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS]
-                out_n[y, x, k, PASSES] = lev_n[off * levels + k, PASSES]
-            out_f[y, x, n:] = 0.0
-            out_n[y, x, n:] = np.uint32(0)
+            for k in range(levels):  # by elements: slices cost a view each
+                for f in range(N_FLOAT_FIELDS):
+                    out_f[y, x, k, f] = lev_f[off * levels + k, f] if k < n else 0.0
+                out_n[y, x, k, HITS] = lev_n[off * levels + k, HITS] if k < n else 0
+                out_n[y, x, k, PASSES] = lev_n[off * levels + k, PASSES] if k < n else 0
 
 
 @njit(cache=True, nogil=True)
