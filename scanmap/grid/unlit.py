@@ -167,13 +167,15 @@ def project_to_image(x: float, y: float, z: float, to_camera: np.ndarray,
 def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
                   mount_inverse: np.ndarray, to_camera: np.ndarray, camera: np.ndarray,
                   intrinsics: np.ndarray, dist: np.ndarray, laser: np.ndarray,
-                  nearest: np.ndarray, floor: np.ndarray, off_plane: np.ndarray) -> None:
+                  nearest: np.ndarray, floor: np.ndarray, off_plane: np.ndarray,
+                  counts: np.ndarray) -> None:
     """Keep in nearest[slot, u] the least distance from the camera of the points on image
     line u (base_link, each seen at its heading; `project_to_image`; inf stays where
     none), mark floor[slot, u] where one lies within FLOOR_TOLERANCE of z = 0, and count
     in off_plane[slot] the points farther than PLANE_TOLERANCE from the laser plane
-    (origin, normal: laser). The points are projected first, by columns, in a loop of
-    their own that vectorises (`_project_lines`), then gathered by line."""
+    (origin, normal: laser), in counts[slot] all. The points are projected first, by
+    columns, in a loop of their own that vectorises (`_project_lines`), then gathered by
+    line."""
     n = points.shape[0]
     cosines, sines = np.empty(n), np.empty(n)
     last, c, s = np.nan, 1.0, 0.0
@@ -188,6 +190,7 @@ def _line_returns(points: np.ndarray, headings: np.ndarray, slot: np.ndarray,
                    to_camera.ravel(), camera, intrinsics, dist, laser, lines, ranges, off)
     width = nearest.shape[1]
     for i in range(n):
+        counts[slot[i]] += 1
         if off[i]:
             off_plane[slot[i]] += 1
         if 0.0 <= lines[i] < width:
@@ -366,14 +369,31 @@ def _reliable_ranges(returned: np.ndarray, floor: np.ndarray, reach: np.ndarray,
 def frame_slots(frame_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`np.unique(frame_index, return_index=True, return_inverse=True)`: the frames, the
     first point of each and each point's frame slot; without sorting when the points come
-    frame by frame, as a scan's do (the sort was a third of `unlit_floor`)."""
+    frame by frame, as a scan's do (the sort was a third of `unlit_floor`), in one pass
+    (`_slots_in_order`: the numpy passes took 0.11 ms of a 20,000-point scan)."""
     frame_index = np.asarray(frame_index)
-    if np.any(frame_index[1:] < frame_index[:-1]):
+    first, slot = _slots_in_order(frame_index)
+    if first is None:
         return np.unique(frame_index, return_index=True, return_inverse=True)
-    starts = np.ones(len(frame_index), bool)
-    starts[1:] = frame_index[1:] != frame_index[:-1]
-    first = np.flatnonzero(starts)
-    return frame_index[first], first, np.cumsum(starts) - 1
+    return frame_index[first], first, slot
+
+
+@njit(cache=True, nogil=True)
+def _slots_in_order(frame_index: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """(first point of each frame, each point's frame slot) of points that come frame by
+    frame (non-decreasing `frame_index`); (None, empty) when they do not."""
+    n = frame_index.shape[0]
+    slot = np.empty(n, np.int64)
+    first = np.empty(n, np.int64)
+    frames = 0
+    for i in range(n):
+        if i == 0 or frame_index[i] != frame_index[i - 1]:
+            if i > 0 and frame_index[i] < frame_index[i - 1]:
+                return None, slot[:0]
+            first[frames] = i
+            frames += 1
+        slot[i] = frames - 1
+    return first[:frames], slot
 
 
 @dataclass(frozen=True)
@@ -403,14 +423,14 @@ def line_returns(scan: Scan, model: ScannerModel) -> LineReturns:
     cam = model.camera
     nearest = np.full((len(frames), cam.width), np.inf)
     floor = np.zeros(nearest.shape, bool)
-    off_plane = np.zeros(len(frames), np.int64)
-    _line_returns(scan.points, scan.heading, slot.astype(np.int64),
+    off_plane, counts = np.zeros(len(frames), np.int64), np.zeros(len(frames), np.int64)
+    _line_returns(scan.points, scan.heading, slot.astype(np.int64, copy=False),
                   np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),
                   cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
-                  nearest, floor, off_plane)
-    foreign = off_plane > OFF_PLANE_SHARE * np.bincount(slot, minlength=len(frames))
+                  nearest, floor, off_plane, counts)
+    foreign = off_plane > OFF_PLANE_SHARE * counts
     return LineReturns(frames, first, slot, np.isfinite(nearest), floor, nearest, foreign)
 
 

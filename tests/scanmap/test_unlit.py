@@ -332,13 +332,16 @@ def test_the_compiled_image_lines_are_those_of_project_head_points_with_distorti
     scan = first_corridor_scan()
     frames, slot = np.unique(scan.frame_index, return_inverse=True)
     nearest = np.full((len(frames), model.camera.width), np.inf)
+    counts = np.zeros(len(frames), np.int64)  # the points of each frame
     cam = model.camera
     _line_returns(scan.points, scan.heading, slot.astype(np.int64),
                   np.linalg.inv(model.head_mount.pose), model.camera_mount.rotation.T.copy(),
                   np.array(model.camera_mount.position), np.array([cam.fx, cam.fy, cam.cx,
                                                                    cam.cy]),
                   cam.dist_coeffs, np.array([*model.laser.origin, *model.laser.normal]),
-                  nearest, np.zeros(nearest.shape, bool), np.zeros(len(frames), np.int64))
+                  nearest, np.zeros(nearest.shape, bool), np.zeros(len(frames), np.int64),
+                  counts)
+    np.testing.assert_array_equal(counts, np.bincount(slot))
     returned = np.isfinite(nearest)
     expected = np.zeros_like(returned)
     for point, heading, row in zip(scan.points, scan.heading, slot, strict=True):
