@@ -357,6 +357,12 @@ def follow_stripe(e: np.ndarray, pad: int, n_pos: int, m: int, offset: int, side
 
 EST_MAX, EST_GAUSS3, EST_BLAIS_RIOUX, EST_LSQ, EST_COM = range(5)  # laser.ESTIMATORS
 COM_LEVEL = 0.5  # the centroid uses the peak above half its height
+EVIDENCE = 2  # `_gather`'s channel number of the evidence
+# A peak whose fit-channel sides differ by more than BACKGROUND_STEP of its height above
+# the lower one is fitted on the evidence, unless green or blue rise at its core by more
+# than CORE_RISE of that height (a white core: the evidence dips there)
+BACKGROUND_STEP = 0.5
+CORE_RISE = 0.25
 
 # The per-line code passes whole buffers with a length n instead of slicing: a slice is a
 # new array whose reference counting costs more than the estimators themselves.
@@ -670,6 +676,15 @@ def smooth_profile(vals: np.ndarray, n: int, lo: int, hi: int, out: np.ndarray) 
 @njit(cache=True, nogil=True, inline="always")
 def _background(vals: np.ndarray, n: int, k0: int, offset: int, side: int) -> float:
     """The lower of the two side means around k0 (a side cut by the line end is skipped)."""
+    below, above = _side_means(vals, n, k0, offset, side)
+    return min(below, above)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _side_means(vals: np.ndarray, n: int, k0: int, offset: int, side: int
+                ) -> tuple[float, float]:
+    """The means of the `side` samples from `offset` on below and above k0 (a side cut by
+    the line end takes the other's; both 0 when both are)."""
     lo_sum = 0.0
     hi_sum = 0.0
     lo_n = 0
@@ -682,12 +697,30 @@ def _background(vals: np.ndarray, n: int, k0: int, offset: int, side: int) -> fl
             hi_sum += vals[k0 + j]
             hi_n += 1
     if lo_n == 0 and hi_n == 0:
-        return 0.0
+        return 0.0, 0.0
     if lo_n == 0:
-        return hi_sum / hi_n
+        return hi_sum / hi_n, hi_sum / hi_n
     if hi_n == 0:
-        return lo_sum / lo_n
-    return min(lo_sum / lo_n, hi_sum / hi_n)
+        return lo_sum / lo_n, lo_sum / lo_n
+    return lo_sum / lo_n, hi_sum / hi_n
+
+
+@njit(cache=True, nogil=True)
+def _core_whitens(flat: np.ndarray, base: int, pos_stride: int, n_pos: int, lo: int,
+                  hi: int, x0: int, reach: int, rise: float) -> bool:
+    """Whether green or blue rise more than `rise` over positions lo..hi-1 of a line above
+    their level `reach` either side of x0: the stripe's core turns white (a bright stripe
+    on the sensor), where the evidence, red minus the stronger of green and blue, dips."""
+    core = 0.0
+    for x in range(lo, hi):
+        i = 3 * (base + x * pos_stride)
+        core = max(core, float(max(flat[i], flat[i + 1])))
+    sides = 0.0
+    for x in (x0 - reach, x0 + reach):
+        if 0 <= x < n_pos:
+            i = 3 * (base + x * pos_stride)
+            sides = max(sides, float(max(flat[i], flat[i + 1])))
+    return core > sides + rise
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -847,6 +880,18 @@ def fit_kernel(flat: np.ndarray, e: np.ndarray, pad: int, n_pos: int, line_strid
                         wide)
                 d = clipped_centre(wide, n_wide, x0 - w_first, sat)
         else:
+            below, above = _side_means(vals, n_buf, k0, offset, side)
+            if fit_channel != EVIDENCE \
+                    and abs(above - below) > BACKGROUND_STEP * g_raw[k0 - w0] \
+                    and not _core_whitens(flat, base, pos_stride, n_pos,
+                                          first + max(0, k0 - half),
+                                          first + min(n_buf, k0 + half + 1), first + k0,
+                                          offset + side - 1, CORE_RISE * g_raw[k0 - w0]):
+                # the scene steps from bright to dark under the stripe (a black surface's
+                # edge beside it): the fit channel's bright side stood above the dark
+                # side's level and pulled the centroid up to 2 px towards it (8 cm along
+                # a floor 2 m off); the evidence holds the laser's light alone
+                _gather(flat, e, pad, line, base, pos_stride, EVIDENCE, first, n_buf, vals)
             reach_fit = max(offset + side - 1, half)  # what _background and g read
             smooth_profile(vals, n_buf, max(0, k0 - reach_fit),
                            min(n_buf, k0 + reach_fit + 1), smooth)

@@ -16,7 +16,13 @@ from scanmap_driver import _laser_kernels as lk
 from scanmap_driver import laser
 from scanmap_driver.errors import ScanError
 from scanmap_driver.laser import Flag, LaserConfig, extract_stripe
-from scanmap_driver.sim.synthetic_frames import saturated_core_frame, stripe_frame, stripe_path
+from scanmap_driver.sim.synthetic_frames import (
+    LASER_BGR,
+    saturated_core_frame,
+    stripe_frame,
+    stripe_path,
+    stripe_profile,
+)
 from tests.conftest import real_data
 
 # ---------------------------------------------------------------- numpy references
@@ -303,6 +309,25 @@ def test_a_small_depth_step_keeps_its_edge_lines_centres(step):
     image, _ = stripe_frame(np.random.default_rng(4), truth=truth, noise=1.0)
     error = extract_stripe(image).peak - truth
     assert np.all(np.abs(error[318:322]) < 0.1)
+
+
+@pytest.mark.parametrize("gap", [1.5, 3.0, -2.0])
+def test_a_dim_stripe_beside_a_dark_surface_keeps_its_centre(gap):
+    """A grey floor (70) ends in black (15) `gap` px from a dim stripe (25 above the
+    floor), the stripe on the floor's side (gap > 0) or the black's: on red, the floor's
+    own light above the black's level pulled the centroid 1.1-1.8 px (gap > 0) and 3.3-4
+    px (gap < 0) towards the floor, one laser line off a black-lined hole's rim put 8 cm
+    inside it; the evidence holds the laser's light alone."""
+    rng = np.random.default_rng(0)
+    truth = 240.3 + 0.05 * (np.arange(640) - 320)
+    pos = np.arange(480)[:, None]
+    floor = np.where(pos < truth[None, :] + gap, 70.0, 15.0)[:, :, None]
+    image = floor + 25.0 * stripe_profile(pos, truth[None, :], 1.5)[:, :, None] \
+        * np.asarray(LASER_BGR) + rng.normal(0.0, 1.0, (480, 640, 3))
+    error = extract_stripe(np.clip(np.rint(image), 0, 255).astype(np.uint8)).peak - truth
+    assert np.isfinite(error).all()
+    assert abs(error.mean()) < 0.05  # measured within 0.007
+    assert np.sqrt(np.mean(error**2)) < 0.15  # measured 0.087
 
 
 def test_a_stretch_of_wide_clipped_stripe_is_found_without_a_width():
