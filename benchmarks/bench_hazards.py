@@ -316,7 +316,8 @@ def rendered_run(scene: Scene | None = None, scans: int | None = None,
     pipeline: the scene's webcam frames rendered (`simulate_recording`) and mapped by
     `scanmap map` (`map_to_folder`: extraction, encoder decoding, registration), as its
     report gives them against the recording's truth (the map placed by the first true
-    pose, the edge on a 1 cm raster), with its obstacle F1 and ATE."""
+    pose, the edge on a 1 cm raster), with its obstacle F1, ATE and the points whose
+    range is more than GROSS_RANGE off."""
     scene = scene or builtin_scene("hazards")
     with tempfile.TemporaryDirectory(prefix="scanmap-rendered-") as scratch:
         recording = simulate_recording(scene, f"{scratch}/rec", reference_scanner(),
@@ -331,6 +332,7 @@ def rendered_run(scene: Scene | None = None, scans: int | None = None,
             "ramp_f1": errors.get("ramp_f1", math.nan),
             "ramp_traversable_f1": errors.get("ramp_traversable_f1", math.nan),
             "ate_m": report["errors"]["trajectory_m"]["ate_rmse"],
+            "range_gross": report["errors"]["range_m"].get("gross", 0),
             "seconds_per_scan": report["mapping"]["seconds_per_scan"]}
 
 
@@ -345,7 +347,7 @@ def rendered_rooms(count: int, first: int = 1, scans: int | None = None,
              for draw in draws for seed in range(first, first + count)}
     runs = list(rooms.values())
     worst = {"rooms": len(runs), **{key: max((r[key] for r in runs), default=0) for key in (
-        "drop_free", "drop_free_strict", "edge_error_cells", "drop_false")},
+        "drop_free", "drop_free_strict", "edge_error_cells", "drop_false", "range_gross")},
         **{key: min((r[key] for r in runs), default=math.nan) for key in (
             "edge_within_one", "obstacle_f1")},
         **{key: min((r[key] for r in runs if not math.isnan(r[key])), default=math.nan)

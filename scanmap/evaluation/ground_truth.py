@@ -77,6 +77,7 @@ def statistics(values: np.ndarray) -> dict[str, float]:
 
 
 RANGE_TRUTH_FIELDS = ("frame", "u", "base", "primary")  # what `range_errors` reads
+GROSS_RANGE = 0.05  # m: a range error beyond the paper's accuracy, counted on its own
 EDGE_RASTER = 0.01  # m: cells of the truth raster a drop-off's edge is measured on
 
 

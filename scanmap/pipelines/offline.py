@@ -198,7 +198,10 @@ def report_text(report: dict) -> str:
             e = errors[key]
             if e.get("count"):
                 lines.append(f"{label} error: median {scale * e['median_abs']:.1f} {unit}, "
-                             f"p95 {scale * e['p95_abs']:.1f} {unit}")
+                             f"p95 {scale * e['p95_abs']:.1f} {unit}"
+                             + (f", {e['gross']} points more than "
+                                f"{100 * evaluation.GROSS_RANGE:.0f} cm off" if "gross" in e
+                                else ""))
         t, g = errors["trajectory_m"], errors["map"]
         lines.append(f"trajectory ATE {100 * t['ate_rmse']:.1f} cm over {t['count']} scans; "
                      f"obstacle F1 {g['obstacle_f1']:.3f} (precision "
@@ -273,8 +276,10 @@ def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
     if checks:  # the scans of this run (not those of a resumed map)
         ranges, counts, headings = zip(*checks, strict=True)
         matched, total = sum(r.size for r in ranges), sum(counts)
-        errors["range_m"] = evaluation.statistics(np.concatenate(ranges)) | {
-            "matched": matched / total if total else math.nan}
+        ranges = np.concatenate(ranges)
+        errors["range_m"] = evaluation.statistics(ranges) | {
+            "matched": matched / total if total else math.nan,
+            "gross": int((np.abs(ranges) > evaluation.GROSS_RANGE).sum())}
         errors["heading_rad"] = evaluation.statistics(np.concatenate(headings))
     else:
         errors["range_m"] = errors["heading_rad"] = {

@@ -36,6 +36,8 @@ def test_a_recording_becomes_a_map_with_its_errors(office_recording, tmp_path, c
     assert report["registration"] == {"degenerate": 0, "fused": 1, "initialised": 1}
     errors = report["errors"]
     assert errors["available"] and errors["range_m"]["p95_abs"] < 0.02
+    assert errors["range_m"]["gross"] <= 1e-3 * errors["range_m"]["count"]  # > 5 cm off
+    assert "points more than 5 cm off" in printed.out
     assert errors["heading_rad"]["p95_abs"] < np.radians(0.5)
     assert errors["trajectory_m"]["count"] == 1
     assert errors["map"]["obstacle_precision"] > 0.9 and errors["map"]["free_precision"] > 0.98
