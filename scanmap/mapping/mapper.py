@@ -116,6 +116,7 @@ class Mapper:
         self._lock = threading.Lock()
         self._stamps: list[float] = []
         self._poses: list[np.ndarray] = []
+        self._published = 0  # the scans whose map the obstacle queries answer from
         self._index: list[int] = []
         self._status: list[str] = []
         self._odometry: list[np.ndarray] = []
@@ -166,6 +167,7 @@ class Mapper:
         if fused and self.config.update_obstacles:
             with clock.stage("obstacles"):
                 self.obstacles.update(self.grid, self._obstacle_bounds())
+        self._published = len(self._poses)
         return MapUpdate(int(scan.index), float(scan.stamp), pose, result, fused, stats, clock)
 
     def _record(self, scan: Scan, result: RegistrationResult, clock: StageClock
@@ -224,6 +226,7 @@ class Mapper:
             self._settle()
         if self.config.update_obstacles and len(self):
             self.obstacles.update(self.grid, self._obstacle_bounds())
+        self._published = len(self._poses)
 
     def _settle(self) -> None:
         """Wait for the loop closer and every rebuild (call with the lock held)."""
@@ -343,9 +346,13 @@ class Mapper:
 
     @property
     def latest_pose(self) -> np.ndarray | None:
-        """base_link in map at the newest scan's start (None before the first scan)."""
-        poses = self._poses
-        return poses[-1] if poses else None
+        """base_link in map at the start of the newest scan the obstacle queries answer
+        from (None before the first scan): a controller asks the map of the scan whose
+        pose it reads. A scan being fused and segmented shows once its map is published;
+        its pose a fusion earlier put the robot where the map before it had not seen it
+        stand, and the corridor's controller crept for one or two polls at every scan."""
+        poses, published = self._poses, self._published
+        return poses[published - 1] if published else None
 
     def trajectory(self) -> Trajectory:
         """One pose per scan, in order: base_link in map when the scan started."""
@@ -473,6 +480,7 @@ class Mapper:
         mapper.grid = state.grid
         mapper._stamps = state.stamps.tolist()
         mapper._poses = list(state.poses)
+        mapper._published = len(mapper._poses)
         mapper._index = state.index.tolist()
         mapper._status = state.status.tolist()
         mapper._odometry = list(state.odometry)

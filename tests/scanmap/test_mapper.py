@@ -167,6 +167,26 @@ def test_offline_queries_use_the_data_clock_and_live_ones_go_stale(office):
     assert offline.obstacles.nearest(0.0, 0.0).status != QueryStatus.STALE
 
 
+def test_the_latest_pose_is_that_of_the_map_the_queries_answer_from(office):
+    """While a scan's map is being made the controller reads the pose of the scan before
+    it, whose map the obstacle queries still answer from; once published, its own."""
+    mapper = Mapper(reference_scanner(), offline=True)
+    assert mapper.latest_pose is None
+    mapper.add(office[0].scan)
+    publish, seen = mapper.obstacles.update, []
+
+    def update(*args, **kwargs):
+        seen.append((mapper.latest_pose, len(mapper)))  # the new pose recorded by now
+        return publish(*args, **kwargs)
+
+    mapper.obstacles.update = update
+    mapper.add(office[1].scan)
+    poses = mapper.trajectory().poses
+    assert seen[0][1] == 2 and np.array_equal(seen[0][0], poses[0])
+    assert np.array_equal(mapper.latest_pose, poses[1])
+    assert not np.allclose(poses[0][:2, 3], poses[1][:2, 3])  # the robot moved
+
+
 def test_a_failed_registration_is_recorded_but_not_fused(office):
     mapper = Mapper(reference_scanner(), offline=True)
     mapper.add(office[0].scan)
