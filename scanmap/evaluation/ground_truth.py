@@ -76,7 +76,7 @@ def statistics(values: np.ndarray) -> dict[str, float]:
             "median": float(np.median(values))}
 
 
-RANGE_TRUTH_FIELDS = ("frame", "u", "base", "primary")  # what `range_errors` reads
+RANGE_TRUTH_FIELDS = ("frame", "u", "base", "primary", "shadowed")  # `range_errors` reads
 GROSS_RANGE = 0.05  # m: a range error beyond the paper's accuracy, counted on its own
 EDGE_RASTER = 0.01  # m: cells of the truth raster a drop-off's edge is measured on
 
@@ -84,16 +84,50 @@ EDGE_RASTER = 0.01  # m: cells of the truth raster a drop-off's edge is measured
 def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.ndarray, int]:
     """Signed range error (m) of each matched point, and the number of true laser points
     (`truth` needs only the laser fields RANGE_TRUTH_FIELDS)."""
-    width = model.camera.width
     primary = truth.laser["primary"].astype(bool)
-    true_key = (truth.laser["frame"][primary].astype(np.int64) * width
-                + np.rint(truth.laser["u"][primary]).astype(np.int64))
-    true_base = truth.laser["base"][primary]
-    true_range = np.hypot(true_base[:, 0], true_base[:, 1])
+    true_key, true_range = _true_columns(truth, primary, model.camera.width)
     if not true_key.size:
         return np.zeros(0), 0
-    order = _ascending(true_key)  # the simulator writes them frame by frame, column by column
-    true_key, true_range = true_key[order], true_range[order]
+    key, measured = _scan_columns(scan, model)
+    at = np.minimum(np.searchsorted(true_key, key), len(true_key) - 1)
+    found = true_key[at] == key
+    return measured[found] - true_range[at[found]], int(primary.sum())
+
+
+def gross_ranges(scan: Scan, truth: ScanTruth, model: ScannerModel,
+                 limit: float = GROSS_RANGE) -> int:
+    """How many points of the image columns the laser lit lie more than `limit` (m) in
+    range from every lit point of their column: not the strongest alone (`range_errors`'
+    match), as a column crossing a depth edge shows the stripe twice, both true."""
+    true_key, true_range = _true_columns(truth, ~truth.laser["shadowed"].astype(bool),
+                                         model.camera.width)
+    if not true_key.size:
+        return 0
+    key, measured = _scan_columns(scan, model)
+    first = np.searchsorted(true_key, key, side="left")
+    end = np.searchsorted(true_key, key, side="right")
+    nearest = np.full(len(key), np.inf)
+    for offset in range(int((end - first).max(initial=0))):  # a column's few lit points
+        at = np.minimum(first + offset, len(true_key) - 1)
+        nearest = np.where(first + offset < end,
+                           np.minimum(nearest, np.abs(measured - true_range[at])), nearest)
+    return int(((end > first) & (nearest > limit)).sum())
+
+
+def _true_columns(truth: ScanTruth, keep: np.ndarray, width: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(frame x width + column, range in base_link) of the `keep` laser truth points,
+    ordered by the first."""
+    key = (truth.laser["frame"][keep].astype(np.int64) * width
+           + np.rint(truth.laser["u"][keep]).astype(np.int64))
+    base = truth.laser["base"][keep]
+    order = _ascending(key)  # the simulator writes them frame by frame, column by column
+    return key[order], np.hypot(base[:, 0], base[:, 1])[order]
+
+
+def _scan_columns(scan: Scan, model: ScannerModel) -> tuple[np.ndarray, np.ndarray]:
+    """(frame x width + image column, range in base_link) of each point of `scan`, the
+    column -1 past the image."""
     # Frame by frame (the assembly's order), each point turned back into the head by its
     # frame's first heading.
     rows = _ascending(scan.frame_index)
@@ -107,11 +141,8 @@ def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.
     head = np.column_stack([c * mount[:, 0] + s * mount[:, 1],
                             c * mount[:, 1] - s * mount[:, 0], mount[:, 2]])
     u = np.rint(project_head_points(model, head)[:, 0]) if len(head) else np.zeros(0)
-    key = frame * width + np.nan_to_num(u, nan=-1.0).astype(np.int64)
-    at = np.minimum(np.searchsorted(true_key, key), len(true_key) - 1)
-    found = (true_key[at] == key) & np.isfinite(u)
-    measured = np.hypot(points[:, 0], points[:, 1])
-    return measured[found] - true_range[at[found]], int(primary.sum())
+    key = frame * model.camera.width + np.nan_to_num(u, nan=-1.0).astype(np.int64)
+    return np.where(np.isfinite(u), key, -1), np.hypot(points[:, 0], points[:, 1])
 
 
 def _ascending(keys: np.ndarray) -> np.ndarray | slice:

@@ -200,8 +200,8 @@ def report_text(report: dict) -> str:
                 lines.append(f"{label} error: median {scale * e['median_abs']:.1f} {unit}, "
                              f"p95 {scale * e['p95_abs']:.1f} {unit}"
                              + (f", {e['gross']} points more than "
-                                f"{100 * evaluation.GROSS_RANGE:.0f} cm off" if "gross" in e
-                                else ""))
+                                f"{100 * evaluation.GROSS_RANGE:.0f} cm off every true point "
+                                f"of their column" if "gross" in e else ""))
         t, g = errors["trajectory_m"], errors["map"]
         lines.append(f"trajectory ATE {100 * t['ate_rmse']:.1f} cm over {t['count']} scans; "
                      f"obstacle F1 {g['obstacle_f1']:.3f} (precision "
@@ -253,19 +253,24 @@ def write_products(mapper: Mapper, seg: Segmentation, out: Path) -> dict[str, st
                                     "overhead.png", "occupancy.png", "report.json")}
 
 
-def scan_errors(scans: ScanSource, scan: Scan) -> tuple[np.ndarray, int, np.ndarray] | None:
-    """A mapped scan's range errors, true laser point count and heading errors against
-    its truth file (None when it has none: a resumed map's scans)."""
+ScanCheck = tuple[np.ndarray, int, np.ndarray, int]  # what `scan_errors` gives
+
+
+def scan_errors(scans: ScanSource, scan: Scan) -> ScanCheck | None:
+    """A mapped scan's range errors, true laser point count, heading errors and gross
+    range errors (`evaluation.gross_ranges`) against its truth file (None when it has
+    none: a resumed map's scans)."""
     path = truth_path(scans.path, scan.index)
     if not path.is_file():
         return None
     truth = ScanTruth.load(path, mask=False, laser=evaluation.RANGE_TRUTH_FIELDS)
     error, count = evaluation.range_errors(scan, truth, scans.model)
-    return error, count, evaluation.heading_errors(scan, truth)
+    return (error, count, evaluation.heading_errors(scan, truth),
+            evaluation.gross_ranges(scan, truth, scans.model))
 
 
 def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
-                        checks: list[tuple[np.ndarray, int, np.ndarray] | None]) -> dict:
+                        checks: list[ScanCheck | None]) -> dict:
     """Range, heading (`scan_errors` of each scan), trajectory and map errors against the
     input's ground truth."""
     folder = scans.ground_truth
@@ -274,12 +279,10 @@ def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
     errors: dict = {"available": True}
     checks = [check for check in checks if check is not None]
     if checks:  # the scans of this run (not those of a resumed map)
-        ranges, counts, headings = zip(*checks, strict=True)
+        ranges, counts, headings, gross = zip(*checks, strict=True)
         matched, total = sum(r.size for r in ranges), sum(counts)
-        ranges = np.concatenate(ranges)
-        errors["range_m"] = evaluation.statistics(ranges) | {
-            "matched": matched / total if total else math.nan,
-            "gross": int((np.abs(ranges) > evaluation.GROSS_RANGE).sum())}
+        errors["range_m"] = evaluation.statistics(np.concatenate(ranges)) | {
+            "matched": matched / total if total else math.nan, "gross": sum(gross)}
         errors["heading_rad"] = evaluation.statistics(np.concatenate(headings))
     else:
         errors["range_m"] = errors["heading_rad"] = {

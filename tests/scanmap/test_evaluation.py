@@ -204,6 +204,36 @@ def test_range_and_heading_errors_see_a_known_bias(office_recording):
         pytest.approx(np.median(headings) + 0.01, abs=1e-9)
 
 
+def test_gross_ranges_count_points_off_every_lit_point_of_their_column(office_recording):
+    """Points moved 10 cm farther are gross, the extracted ones few; a column lit twice
+    (the stripe across a depth edge) holds a point on its weaker stripe that is not."""
+    recording = Recording.open(office_recording)
+    scan, _, _ = next(recording_scans(recording))
+    truth = ScanTruth.load(truth_path(office_recording, 0))
+    assert evaluation.gross_ranges(scan, truth, recording.model) <= 1e-3 * len(scan)
+    radial = scan.points[:, :2] / np.hypot(*scan.points[:, :2].T)[:, None]
+    farther = dataclasses.replace(scan, points=scan.points + np.column_stack(
+        [0.1 * radial, np.zeros(len(scan))]).astype(np.float32))
+    matched = evaluation.range_errors(scan, truth, recording.model)[0].size
+    # measured 0.85: a point moved lands in another column, one lit nearer or not at all
+    assert evaluation.gross_ranges(farther, truth, recording.model) > 0.75 * matched
+    # The strongest point of every column 10 cm nearer than its stripe, as another lit
+    # point of the column: the scan's points are then off the strongest, not off the other
+    laser = dict(truth.laser)
+    primary = laser["primary"].astype(bool)
+    base = laser["base"][primary]
+    nearer = base.copy()
+    nearer[:, :2] *= (1.0 - 0.1 / np.hypot(base[:, 0], base[:, 1]))[:, None]
+    twice = dataclasses.replace(truth, laser={
+        k: np.concatenate([v, v[primary]]) for k, v in laser.items()}
+        | {"base": np.concatenate([laser["base"], nearer])})
+    twice.laser["base"][np.flatnonzero(primary)] = nearer  # the strongest moved nearer
+    twice.laser["base"][len(primary):] = base  # the other: where the stripe is
+    assert evaluation.range_errors(scan, twice, recording.model)[0].size == matched
+    assert np.median(np.abs(evaluation.range_errors(scan, twice, recording.model)[0])) > 0.09
+    assert evaluation.gross_ranges(scan, twice, recording.model) <= 1e-3 * len(scan)
+
+
 def test_range_errors_do_not_depend_on_the_order_of_points_or_truth(office_recording):
     """The points come frame by frame and the truth column by column, which the errors
     use when they can; shuffled, both give the same errors (as a set) and count."""
