@@ -81,29 +81,34 @@ GROSS_RANGE = 0.05  # m: a range error beyond the paper's accuracy, counted on i
 EDGE_RASTER = 0.01  # m: cells of the truth raster a drop-off's edge is measured on
 
 
-def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel) -> tuple[np.ndarray, int]:
+def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel,
+                 columns: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, int]:
     """Signed range error (m) of each matched point, and the number of true laser points
-    (`truth` needs only the laser fields RANGE_TRUTH_FIELDS)."""
+    (`truth` needs only the laser fields RANGE_TRUTH_FIELDS); `columns`: `scan_columns`
+    of the scan when already at hand."""
     primary = truth.laser["primary"].astype(bool)
     true_key, true_range = _true_columns(truth, primary, model.camera.width)
     if not true_key.size:
         return np.zeros(0), 0
-    key, measured = _scan_columns(scan, model)
+    key, measured = columns or scan_columns(scan, model)
     at = np.minimum(np.searchsorted(true_key, key), len(true_key) - 1)
     found = true_key[at] == key
     return measured[found] - true_range[at[found]], int(primary.sum())
 
 
 def gross_ranges(scan: Scan, truth: ScanTruth, model: ScannerModel,
-                 limit: float = GROSS_RANGE) -> int:
+                 limit: float = GROSS_RANGE,
+                 columns: tuple[np.ndarray, np.ndarray] | None = None) -> int:
     """How many points of the image columns the laser lit lie more than `limit` (m) in
     range from every lit point of their column: not the strongest alone (`range_errors`'
-    match), as a column crossing a depth edge shows the stripe twice, both true."""
+    match), as a column crossing a depth edge shows the stripe twice, both true;
+    `columns` as for `range_errors`."""
     true_key, true_range = _true_columns(truth, ~truth.laser["shadowed"].astype(bool),
                                          model.camera.width)
     if not true_key.size:
         return 0
-    key, measured = _scan_columns(scan, model)
+    key, measured = columns or scan_columns(scan, model)
     first = np.searchsorted(true_key, key, side="left")
     end = np.searchsorted(true_key, key, side="right")
     nearest = np.full(len(key), np.inf)
@@ -125,9 +130,10 @@ def _true_columns(truth: ScanTruth, keep: np.ndarray, width: int
     return key[order], np.hypot(base[:, 0], base[:, 1])[order]
 
 
-def _scan_columns(scan: Scan, model: ScannerModel) -> tuple[np.ndarray, np.ndarray]:
+def scan_columns(scan: Scan, model: ScannerModel) -> tuple[np.ndarray, np.ndarray]:
     """(frame x width + image column, range in base_link) of each point of `scan`, the
-    column -1 past the image."""
+    column -1 past the image: what `range_errors` and `gross_ranges` match to the truth
+    (the projection is most of their time; a caller of both computes it once)."""
     # Frame by frame (the assembly's order), each point turned back into the head by its
     # frame's first heading.
     rows = _ascending(scan.frame_index)

@@ -264,9 +264,10 @@ def scan_errors(scans: ScanSource, scan: Scan) -> ScanCheck | None:
     if not path.is_file():
         return None
     truth = ScanTruth.load(path, mask=False, laser=evaluation.RANGE_TRUTH_FIELDS)
-    error, count = evaluation.range_errors(scan, truth, scans.model)
+    columns = evaluation.scan_columns(scan, scans.model)  # once for both
+    error, count = evaluation.range_errors(scan, truth, scans.model, columns)
     return (error, count, evaluation.heading_errors(scan, truth),
-            evaluation.gross_ranges(scan, truth, scans.model))
+            evaluation.gross_ranges(scan, truth, scans.model, columns=columns))
 
 
 def ground_truth_errors(mapper: Mapper, seg: Segmentation, scans: ScanSource,
