@@ -497,7 +497,7 @@ def rim_cells(levels: np.ndarray, nlev: np.ndarray, edges: np.ndarray, is_floor:
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows, columns and tops of the `edges` cells with one level whose mean hit lies in
     its upper quarter, a `floor_height` of the 3 x 3 cells round them within `max_step` of
-    that top and none more than `max_step` below it (`floor._rims`), row by row. In
+    that top and none more than `max_step` below it (`floor._model._rims`), row by row. In
     float32 as numpy computes it on the float32 arrays (`tests`' reference)."""
     ny, nx = nlev.shape
     step, quarter = np.float32(max_step), np.float32(0.75)
@@ -1011,7 +1011,7 @@ def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach
     of a face cell, and two jumps across the gaps beside it joined the two floors (step
     room 1009, 5.7 cm down, at 0.3 px: its lower floor FREE for six scans). Only cells of
     `varied` are looked at: any other has no two candidates more than max_step apart
-    round it (`floor._bridged_steps`)."""
+    round it (`floor._model._bridged_steps`)."""
     ny, nx = heights.shape
     out = np.zeros((ny, nx), np.bool_)
     margin = 0.1 * max_step
@@ -1401,7 +1401,7 @@ def _highest_bit(bits: np.uint64) -> int:
 def lowest_level_below(levels: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
                        limit: np.ndarray, field: int) -> np.ndarray:
     """Cells with hits, not floor, whose lowest level's `field` (LO or HI) lies below
-    `limit` (False for NaN): `floor._below_model` and `_reaching_below` in one pass over
+    `limit` (False for NaN): `floor._unseen._below_model` and `_reaching_below` in one pass over
     the levels, where numpy's strided read of the field alone took longer."""
     ny, nx = nlev.shape
     out = np.zeros((ny, nx), np.bool_)
@@ -1417,7 +1417,7 @@ def footprint_cells(stood: np.ndarray, xs: np.ndarray, ys: np.ndarray, origin_x:
                     origin_y: float, res: float, radius: float, reach: int) -> np.ndarray:
     """Cells (ny, nx: the lengths of the cell centres `ys`, `xs`) whose square lies less
     than `radius` from a place the robot stood (`stood` (M, 2) x, y), searched within
-    `reach` cells of the cell holding it (`floor._footprint_cells`)."""
+    `reach` cells of the cell holding it (`floor.segmentation._footprint_cells`)."""
     ny, nx = ys.shape[0], xs.shape[0]
     out = np.zeros((ny, nx), np.bool_)
     half = 0.5 * res  # from a cell's centre to its square's nearest point
@@ -1439,7 +1439,7 @@ def observed_span(nlev: np.ndarray, seen: np.ndarray, stood: np.ndarray, origin_
                   origin_y: float, res: float) -> tuple[int, int, int, int]:
     """First and last row and column of the cells with a level or with heights rays saw,
     or holding a place the robot stood (`stood` (M, 2) x, y; places beyond the window
-    left out); (-1, -1, -1, -1) without any (`floor._observed_box`, in one pass)."""
+    left out); (-1, -1, -1, -1) without any (`floor.segmentation._observed_box`, in one pass)."""
     ny, nx = nlev.shape
     top, bottom, left, right = ny, -1, nx, -1
     for y in range(ny):  # each row from both ends to its first observed cell

@@ -507,3 +507,17 @@ def box_slices(box: np.ndarray) -> tuple[slice, slice]:
     """(rows, columns) slices of a `component_boxes` box (x, y, width, height)."""
     x, y, w, h = map(int, box)
     return slice(y, y + h), slice(x, x + w)
+
+
+def small_patches(mask: np.ndarray, size: int, margin: int = 1
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Components of `mask`: labels, each label's box (x, y, width, height) and whether it
+    is at most `size` cells on each side and at least `margin` cells from the window's
+    edge (False for label 0, off the mask)."""
+    ny, nx = mask.shape
+    labels, boxes = component_boxes(mask)
+    x, y, w, h = boxes.T
+    ok = (w <= size) & (h <= size) & (x >= margin) & (y >= margin) \
+        & (x + w <= nx - margin) & (y + h <= ny - margin)
+    ok[0] = False
+    return labels, boxes, ok

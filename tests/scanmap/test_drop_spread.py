@@ -14,7 +14,7 @@ from scipy import ndimage
 from benchmarks.bench_hazards import ROBOT, hazard_run, mapped, truth_classes
 from benchmarks.random_rooms import mixed_room
 from scanmap.navigation import DROP_OFF, morphology
-from scanmap.navigation.floor import _shadow_share
+from scanmap.navigation.floor._drop_offs import _shadow_share
 from scanmap_driver.sim import RASTER_FLOOR, builtin_scene, truth_raster
 
 SQUARE = np.ones((3, 3), bool)

@@ -14,14 +14,17 @@ from scipy import ndimage
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
 from scanmap.navigation import _kernels as nk
-from scanmap.navigation import floor as floor_module
 from scanmap.navigation.floor import (
     FREE,
     OBSTACLE,
     FloorConfig,
     RobotShape,
+    _drop_offs,
+    _model,
+    _states,
     ransac_plane,
     segment,
+    segmentation,
 )
 from scanmap_driver.errors import MapError
 
@@ -168,7 +171,7 @@ def test_small_holes_take_patches_inside_level_floor_only():
     drop = np.zeros(floor.shape, bool)
     drop[5, 27] = True  # a drop-off in the fourth
     heights = np.where(floor, heights, np.nan).astype(np.float32)
-    holes = floor_module._small_holes(nlev, floor, heights, drop, 2, 0.05)
+    holes = _drop_offs._small_holes(nlev, floor, heights, drop, 2, 0.05)
     expected = np.zeros(floor.shape, bool)
     expected[4:6, 2:4] = expected[4:6, 34:36] = True
     assert (holes == expected).all()
@@ -292,7 +295,7 @@ def test_a_step_edge_whose_hits_lie_on_its_top_beside_the_face_is_the_floor_abov
     is_floor = ~np.isnan(heights)
     edges = nk.step_edges(levels, nlev, heights, is_floor, 0.05, 0.2, 0.03)
     assert edges[0, 2] and edges[0, 3] == (beyond == "face")
-    rows, cols, tops = floor_module._rims(levels, nlev, edges, is_floor, heights, 0.05)
+    rows, cols, tops = _model._rims(levels, nlev, edges, is_floor, heights, 0.05)
     assert list(zip(rows, cols, strict=True)) == ([(0, 2)] if rim else [])
     assert tops == pytest.approx([0.098] if rim else [])
 
@@ -646,7 +649,7 @@ def test_the_observed_box_bounds_the_observed_cells_and_the_places_stood(ny, nx,
                         levels=np.zeros((ny, nx, 3, gk.N_FLOAT_FIELDS), np.float32),
                         counts=np.zeros((ny, nx, 3, 2), np.uint32), nlev=nlev, seen=seen,
                         updated=np.zeros((ny, nx)), stood=stood)
-    assert floor_module._observed_box(layers, RobotShape(radius=0.01), 1) == want
+    assert segmentation._observed_box(layers, RobotShape(radius=0.01), 1) == want
 
 
 @settings(max_examples=60, deadline=None)
@@ -659,7 +662,7 @@ def test_between_takes_cells_with_the_mask_on_both_sides_in_a_row_or_column(ny, 
         for x in range(nx):
             want[y, x] = (0 < x < nx - 1 and mask[y, x - 1] and mask[y, x + 1]) or (
                 0 < y < ny - 1 and mask[y - 1, x] and mask[y + 1, x])
-    assert np.array_equal(floor_module._between(mask), want)
+    assert np.array_equal(_states._between(mask), want)
 
 
 @pytest.mark.parametrize("height", [math.nan, math.inf, -math.inf])
@@ -692,11 +695,11 @@ def test_a_window_mostly_unobserved_segments_as_a_whole():
                          HeightGrid(GridConfig(extent=50.0)))
     layers = mapped.grid.layers((-8.0, -8.0, 8.0, 8.0))
     params, robot = FloorConfig(), RobotShape()
-    rows, cols = floor_module._observed_box(layers, robot,
-                                            floor_module._reach(params, layers.resolution))
+    rows, cols = segmentation._observed_box(layers, robot,
+                                            segmentation._reach(params, layers.resolution))
     assert (rows.stop - rows.start) * (cols.stop - cols.start) < 0.4 * layers.nlev.size
     seg = segment(layers, robot, params)
-    assert_same_segmentation(seg, floor_module._segment(layers, robot, params, None)[0])
+    assert_same_segmentation(seg, segmentation._segment(layers, robot, params, None)[0])
     assert (seg.state == FREE).sum() > 1000 and (seg.state == OBSTACLE).sum() > 300
     assert np.isfinite(seg.floor_height).all()  # beyond the reach: the floor plane's height
 
@@ -711,7 +714,7 @@ def test_a_2d_laser_window_mostly_unobserved_keeps_its_assumed_floor():
     layers = grid.layers((-9.0, -9.0, 9.0, 9.0))
     flat = FloorConfig(min_coverage=0.0, detect=False)
     seg = segment(layers, params=flat, fallback_floor=0.0)
-    assert_same_segmentation(seg, floor_module._segment(layers, RobotShape(), flat, 0.0)[0])
+    assert_same_segmentation(seg, segmentation._segment(layers, RobotShape(), flat, 0.0)[0])
     assert (seg.floor_height == 0.0).all() and (seg.state == OBSTACLE).sum() > 100
 
 

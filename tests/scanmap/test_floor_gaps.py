@@ -17,7 +17,8 @@ from scanmap.grid._kernels import LO
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.navigation import _kernels as nk
 from scanmap.navigation import floor as floor_module
-from scanmap.navigation.floor import FloorConfig, RobotShape, segment
+from scanmap.navigation import morphology
+from scanmap.navigation.floor import FloorConfig, RobotShape, _drop_offs, _unseen, segment
 from scanmap_driver.scanner_model import reference_scanner
 from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.ideal import ideal_scans
@@ -41,7 +42,7 @@ def gap_scene(n: int = 20, gap: tuple[int, int, int, int] = (8, 10, 8, 10)):
 
 
 def lit_gaps(bare, nlev, is_floor, heights, drop, dips):
-    return floor_module._lit_gaps(bare, nlev, is_floor, heights, drop, dips, 6, STEP)
+    return _unseen._lit_gaps(bare, nlev, is_floor, heights, drop, dips, 6, STEP)
 
 
 def test_a_small_gap_in_level_floor_is_floor():
@@ -72,7 +73,7 @@ def test_a_dip_is_a_level_reaching_below_the_floor_beside_it(depth, dips):
     nlev[0, :] = 0  # and a row without hits, whose bottoms mean nothing
     bottom = np.where(nlev > 0, 0.0, -1.0).astype(np.float32)
     bottom[4, 4] = -depth * TOLERANCE
-    found = floor_module._dips(nlev, bottom, nlev > 0, TOLERANCE)
+    found = _unseen._dips(nlev, bottom, nlev > 0, TOLERANCE)
     expected = np.zeros((9, 9), bool)
     expected[4, 4] = dips
     assert (found == expected).all()
@@ -85,7 +86,7 @@ def test_the_steepest_floor_has_no_dips(slope, azimuth):
     y, x = np.mgrid[0:12, 0:12] * 0.05
     bottom = (np.tan(slope) * (x * np.cos(azimuth) + y * np.sin(azimuth))).astype(np.float32)
     nlev = np.ones((12, 12), np.uint8)
-    assert not floor_module._dips(nlev, bottom, nlev > 0, TOLERANCE).any()
+    assert not _unseen._dips(nlev, bottom, nlev > 0, TOLERANCE).any()
 
 
 def test_plain_floor_shows_no_dips_under_four_times_the_peak_noise():
@@ -102,7 +103,7 @@ def test_plain_floor_shows_no_dips_under_four_times_the_peak_noise():
     floor = seg.is_floor & (layers.nlev > 0)
     assert floor.sum() > 2000
     bottom = layers.levels[:, :, 0, LO]
-    assert not floor_module._dips(layers.nlev, bottom, floor, PARAMS.plane_tolerance).any()
+    assert not _unseen._dips(layers.nlev, bottom, floor, PARAMS.plane_tolerance).any()
 
 
 def test_pooled_seen_spreads_each_bin_to_the_neighbours_only():
@@ -160,7 +161,7 @@ def test_floor_gaps_match_their_plain_reference(seed):
     dips = rng.random((n, n)) < 0.01
     bare = ~ndimage.maximum_filter(nlev > 0, 3)
     drop = rng.random((n, n)) < 0.01
-    labels, boxes, ok = floor_module._small_patches(bare, 4, margin=2)
+    labels, boxes, ok = morphology.small_patches(bare, 4, margin=2)
     near_drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool))
     args = (labels, boxes, ok, near_drop, nlev, is_floor, heights, dips, STEP)
     assert np.array_equal(nk.floor_gaps(*args), nk.floor_gaps_reference(*args))
@@ -343,7 +344,7 @@ def test_cells_beyond_every_span_passed_as_hits_change_no_interpolation(seed):
     hit = (rng.random((40, 50)) < 0.2) & ~known
     heights = rng.normal(0.0, 0.03, (40, 50)).astype(np.float32)
     for size in range(7):
-        beyond = floor_module._beyond_spans(known, size)
+        beyond = _drop_offs._beyond_spans(known, size)
         for unlit in (False, True):
             assert np.array_equal(
                 nk.interpolated(known, hit | beyond, heights, size, STEP, unlit, nk.NO_SAMPLES),
@@ -412,11 +413,11 @@ def test_a_small_patch_without_returns_is_a_hole_beside_a_surface_below_the_floo
     lowest = np.zeros(layers.shape, np.float32)
     none = np.zeros(layers.shape, bool)
     assert 4 <= dark.sum() <= 9
-    sunk = floor_module._sunk(dark, layers, is_floor, lowest, none, 6, 0.03, None)
+    sunk = _unseen._sunk(dark, layers, is_floor, lowest, none, 6, 0.03, None)
     assert (sunk == (dark if wall == 1.13 else none)).all()
     drop = ndimage.binary_dilation(dark) & ~dark  # beside a drop-off: the drop's own rule
-    assert not floor_module._sunk(dark, layers, is_floor, lowest, drop, 6, 0.03, None).any()
-    assert not floor_module._sunk(dark, layers, is_floor, lowest, none, 1, 0.03, None).any()
+    assert not _unseen._sunk(dark, layers, is_floor, lowest, drop, 6, 0.03, None).any()
+    assert not _unseen._sunk(dark, layers, is_floor, lowest, none, 1, 0.03, None).any()
 
 
 def between_floor_lines(first: float, spacing: float, params: FloorConfig

@@ -7,7 +7,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from scanmap.navigation.floor import DROP_OFF, FREE, OBSTACLE, UNKNOWN, _pinholes
+from scanmap.navigation.floor import DROP_OFF, FREE, OBSTACLE, UNKNOWN
+from scanmap.navigation.floor._states import _pinholes
 
 
 @given(h=st.integers(1, 5), w=st.integers(1, 5), y=st.integers(1, 12), x=st.integers(1, 12),

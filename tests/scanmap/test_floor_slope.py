@@ -16,14 +16,14 @@ from hypothesis.extra.numpy import arrays
 from scanmap.grid.height_grid import GridConfig, HeightGrid
 from scanmap.navigation import _kernels as nk
 from scanmap.navigation import floor
-from scanmap.navigation.floor import FloorConfig, RobotShape
+from scanmap.navigation.floor import FloorConfig, RobotShape, _model
 
 from .growth import grow_region
 
 RES = 0.05
 STEP = 0.05
 REACH = 2
-REACH_OF_A_STEP = floor._bridge_reach(RobotShape(), FloorConfig(), RES)  # `bridged_steps`'
+REACH_OF_A_STEP = _model._bridge_reach(RobotShape(), FloorConfig(), RES)  # `bridged_steps`'
 NOISE = FloorConfig().plane_noise
 MAX_SLOPE = FloorConfig().max_slope
 
@@ -187,7 +187,7 @@ def _row(*heights: float) -> np.ndarray:
 ])
 def test_bridged_steps_are_the_cells_between_two_sides_of_a_step(heights, bridges):
     row = _row(*heights)
-    flagged = floor._bridged_steps(row, np.zeros(row.shape, bool), STEP, REACH_OF_A_STEP)
+    flagged = _model._bridged_steps(row, np.zeros(row.shape, bool), STEP, REACH_OF_A_STEP)
     assert tuple(np.flatnonzero(flagged[1])) == bridges
     assert not flagged[0].any() and not flagged[2].any()
 
@@ -213,7 +213,7 @@ TURNED_STEP_MM = [
 
 def test_the_floor_grown_down_a_turned_steps_face_stops_at_the_step():
     heights = (np.array(TURNED_STEP_MM[::-1]) / 1000.0).astype(np.float32)
-    bridges = floor._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
+    bridges = _model._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
                                    REACH_OF_A_STEP)
     grown = grow_region(np.where(bridges, np.nan, heights), heights > -0.003, STEP,
                            np.isnan(heights), math.tan(FloorConfig().max_slope) * RES, heights)
@@ -243,10 +243,10 @@ def test_a_face_cell_with_both_floors_to_one_side_bridges_the_step_where_both_ar
     heights = (np.array(SPARSE_FACE_MM[::-1]) / 1000.0).astype(np.float32)
     face = (heights < -0.01) & (heights > -0.05)
     level = ~face & ~np.isnan(heights)  # the floors' cells, 0-1 deg; the face's 4-17 deg
-    bridges = floor._bridged_steps(heights, level, STEP, REACH_OF_A_STEP)
+    bridges = _model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP)
     centre = (4, 4)
     assert bridges[centre] and not bridges[~face].any()
-    assert not floor._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
+    assert not _model._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
                                     REACH_OF_A_STEP)[centre]  # by the sides alone: none
     lower = heights < -0.05
     for left_out in (bridges, np.zeros(heights.shape, bool)):
@@ -375,8 +375,8 @@ def test_no_cell_of_a_ramp_within_max_slope_bridges_a_step(degrees, direction, b
     y, x = np.mgrid[0:11, 0:11] * RES
     rise = math.tan(math.radians(degrees)) * (math.cos(direction) * x + math.sin(direction) * y)
     heights = (base + rise).astype(np.float32)
-    level = np.full(heights.shape, degrees <= math.degrees(floor.LEVEL_SLOPE))
-    assert not floor._bridged_steps(heights, level, STEP, REACH_OF_A_STEP).any()
+    level = np.full(heights.shape, degrees <= math.degrees(_model.LEVEL_SLOPE))
+    assert not _model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP).any()
 
 
 def test_a_raised_ramps_cells_are_no_bridges_for_a_robot_with_a_high_step_and_a_low_slope():
@@ -385,21 +385,21 @@ def test_a_raised_ramps_cells_are_no_bridges_for_a_robot_with_a_high_step_and_a_
     # 0.51 m, and the ramp's upper cells lay within a step of both its top and the floor
     # beside, more than a step apart: bridges, not floor (ramp F1 0.75 in random room 1)
     robot, params = RobotShape(step_height=0.1), FloorConfig(max_slope=math.radians(10.0))
-    reach = floor._bridge_reach(robot, params, RES)
-    assert reach == pytest.approx(floor.FACE_SPAN / RES)
-    assert floor._bridge_reach(RobotShape(), FloorConfig(), RES) < reach  # the default's
+    reach = _model._bridge_reach(robot, params, RES)
+    assert reach == pytest.approx(_model.FACE_SPAN / RES)
+    assert _model._bridge_reach(RobotShape(), FloorConfig(), RES) < reach  # the default's
     heights = np.zeros((24, 28), np.float32)
     heights[8:] = np.arange(28) * RES * math.tan(math.radians(7.7))
     level = np.zeros(heights.shape, bool)
     level[:8] = True
-    bridges = floor._bridged_steps(heights, level, robot.step_height, reach)
+    bridges = _model._bridged_steps(heights, level, robot.step_height, reach)
     # next to its side face, where that rises higher than a step, a cell or two may be
     # (as for the default robot); past them none (0.51 m across: 73 cells, rows 8-17)
     assert not bridges[10:].any() and bridges.sum() <= 10
     # a step of 12 cm beside the same floor is bridged still, a face cell between
     heights[8:] = 0.12
     heights[8, :] = 0.06
-    assert floor._bridged_steps(heights, level, robot.step_height, reach)[8].all()
+    assert _model._bridged_steps(heights, level, robot.step_height, reach)[8].all()
 
 
 @settings(max_examples=40, deadline=None)
@@ -505,13 +505,13 @@ def test_the_floor_grows_no_staircase_down_a_steps_edge():
                       elements=st.sampled_from([0.0, 0.0, 0.0, 0.0, 0.0, 0.03, 0.06, np.nan]),
                       fill=st.nothing()))
 def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(heights):
-    """`floor._bridged_steps` looks only where the candidates round a cell span more than
+    """`_model._bridged_steps` looks only where the candidates round a cell span more than
     a step; the kernel asked to look everywhere finds the same cells (on level floor
     with a few cells a step's face or its far side apart: bridges here and there)."""
     level = heights != np.float32(0.03)  # the face's cells are not level
     everywhere = nk.bridged_steps(heights, level, STEP, REACH_OF_A_STEP,
                                   np.ones(heights.shape, bool))
-    assert np.array_equal(floor._bridged_steps(heights, level, STEP, REACH_OF_A_STEP),
+    assert np.array_equal(_model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP),
                           everywhere)
 
 
@@ -581,7 +581,7 @@ def floor_from_above(heights: np.ndarray, slope: np.ndarray, tangent: np.ndarray
                      planar: np.ndarray) -> np.ndarray:
     """The floor grown from the cells at 0 (within 5 mm) over the cells no steeper than
     MAX_SLOPE, jumping the cells without a hit and along `tangent`'s planes, anchored at
-    the `planar` cells (as `floor._segment` grows it, the floor plane at 0)."""
+    the `planar` cells (as `segmentation._segment` grows it, the floor plane at 0)."""
     level = np.where(slope > MAX_SLOPE, np.nan, heights).astype(np.float32)
     return grow_region(level, heights > -0.005, STEP, np.isnan(heights),
                        math.tan(MAX_SLOPE) * RES, heights, tangent, 2.0 * NOISE, planar,

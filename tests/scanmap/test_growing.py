@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from scanmap.grid.growing import GrowingArray
 from scanmap.grid.height_grid import GridConfig, HeightGrid
-from scanmap.navigation.floor import _footprint_cells
+from scanmap.navigation.floor.segmentation import _footprint_cells
 
 chunks = st.lists(st.integers(0, 40), max_size=30)
 

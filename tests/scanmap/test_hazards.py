@@ -65,7 +65,7 @@ def test_no_drop_off_is_free_and_its_edge_is_within_a_cell(any_scene):
     assert measures["edge_within_one"] >= 0.98
     assert measures["edge_error_cells"] <= math.sqrt(2.0)  # a cell, diagonals included
     # workshop 0.77: past the outermost laser line that shows a drop-off its edge lies
-    # anywhere up to the next line, and the cells there are UNKNOWN (floor.py's spread)
+    # anywhere up to the next line, and the cells there are UNKNOWN (`floor._drop_offs`' spread)
     assert measures["drop_found"] > 0.75 * measures["drop_cells"]
     assert measures["edge_cells"] > 20
 
@@ -687,7 +687,7 @@ def test_a_ramps_cells_beside_a_face_on_their_edge_are_traversable(draw, seed, p
     # edges: at the laser's noise some of the face's hits fall into the ramp's cells beside
     # it, whose levels then reach down the face, and the column was a step's edge
     # (OBSTACLE): traversable F1 0.962 and 0.961. Their hits lie mostly on the ramp's top,
-    # the face's cell beyond holds the face: they are the ramp's floor (`floor._rims`)
+    # the face's cell beyond holds the face: they are the ramp's floor (`floor._model._rims`)
     measures = hazard_run(scene=draw(seed), pixel_sigma=pixel_sigma)
     assert measures["ramp_traversable_f1"] >= 0.97
     assert measures["drop_free_any_scan"] == 0

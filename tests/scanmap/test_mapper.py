@@ -67,7 +67,7 @@ def test_map_matches_the_scene_raster(office, mapped):
     errors = map_errors(mapper.segment(), raster, map_to_world(estimate, true_starts(office)))
     assert errors["obstacle_f1"] >= 0.95
     # Free is (almost) never claimed on an obstacle. A few cells under the table top are:
-    # rays passed under it at most band heights and none hit it there (floor.py's
+    # rays passed under it at most band heights and none hit it there (`floor._states`'
     # min_coverage trade-off), so the top's height stays unseen in those cells.
     assert errors["free_precision"] >= 0.99
 
