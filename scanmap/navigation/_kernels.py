@@ -1599,9 +1599,25 @@ def _spread_overhangs(hanging: np.ndarray, gaps: np.ndarray, state: np.ndarray,
     return spread
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _rim_of_floor(is_floor: np.ndarray, floor_height: np.ndarray, y: int, x: int, z: float,
+                  step: float) -> bool:
+    """Whether a cell of `is_floor` beside (y, x) has its floor within `step` of height
+    `z`: a level there is that floor's rim, not a board (ramp room 8006: a ramp's raised
+    end, 24 cm up, hit in the cell past it whose floor rays saw under it, overhung the
+    ramp's upper half, whose bands start below 24 cm: 30 of its cells not floor)."""
+    ny, nx = is_floor.shape
+    for yy in range(max(y - 1, 0), min(y + 2, ny)):
+        for xx in range(max(x - 1, 0), min(x + 2, nx)):
+            if is_floor[yy, xx] and abs(floor_height[yy, xx] - z) <= step:
+                return True
+    return False
+
+
 @njit(cache=True, nogil=True)
 def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
-                  counted: np.ndarray, floor_height: np.ndarray, step: float,
+                  counted: np.ndarray, floor_height: np.ndarray, is_floor: np.ndarray,
+                  step: float,
                   height: float, z_min: float,
                   mask_dz: float, coverage: float,
                   reach: int, thin: float, origin_x: float, origin_y: float, res: float,
@@ -1619,6 +1635,8 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
     seen those heights either but saw lower ones. A board is the lowest level in its
     cell, at most `thin` thick, with free space seen under it at least a bin below its
     lowest hit (a ray that ends on a box's top marks only the heights above the hit), and
+    not within `step` of the floor of a cell of `is_floor` beside it (that floor's rim: a
+    ramp's raised end seen in the cell past it, the floor there seen under it), and
     `_plates` decides whether it overhangs. A cell under a table top that rays reached
     only under the top is thus not FREE, however much of the band they saw there.
     A band level with log-odds below `min_logodds` does not make its cell an OBSTACLE
@@ -1652,7 +1670,8 @@ def classify_band(levels: np.ndarray, nlev: np.ndarray, seen: np.ndarray,
                 if hi > low and lo < high:
                     bits = gk.height_mask(max(lo, low), min(hi, high), z_min, mask_dz)
                     if lo > low and hi - lo <= thin and occupied[y, x] == 0 \
-                            and seen[y, x] & gk.height_mask(low, lo - mask_dz, z_min, mask_dz):
+                            and seen[y, x] & gk.height_mask(low, lo - mask_dz, z_min, mask_dz) \
+                            and not _rim_of_floor(is_floor, floor_height, y, x, lo, step):
                         hanging[y, x] |= bits  # a board with free space under it
                     occupied[y, x] |= bits  # for the neighbours, doubtful or not
                     if levels[y, x, k, gk.LOGODDS] < min_logodds:

@@ -190,7 +190,8 @@ def test_band_coverage_counts_the_band_bins_seen(pooled):
         logodds = np.empty(layers.shape, np.float32)
         covered = np.zeros(layers.shape, bool)
         nk.classify_band(layers.levels, layers.nlev, seen, counted,
-                         np.zeros(layers.shape, np.float32), robot.step_height, robot.height,
+                         np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
+                         robot.step_height, robot.height,
                          layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
                          layers.origin[1], layers.resolution, state, points, logodds, covered)
         inner = state[1:, 1:] if not pooled else state
@@ -198,7 +199,8 @@ def test_band_coverage_counts_the_band_bins_seen(pooled):
     if pooled:  # the cell itself must have seen one of the band's bins
         seen = np.where(np.eye(*layers.shape, dtype=bool), np.uint64(0), np.uint64(band))
         nk.classify_band(layers.levels, layers.nlev, seen, np.full(layers.shape, band, np.uint64),
-                         np.zeros(layers.shape, np.float32), robot.step_height, robot.height,
+                         np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
+                         robot.step_height, robot.height,
                          layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
                          layers.origin[1], layers.resolution, state, points, logodds, covered)
         assert (state[np.eye(*layers.shape, dtype=bool)] == floor_module.UNKNOWN).all()

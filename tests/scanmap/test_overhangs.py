@@ -136,3 +136,32 @@ def test_pieces_of_a_wall_face_before_its_unseen_inside_are_no_overhang():
     seg = segment(layers, ROBOT)
     away = (slice(2, N - 2), slice(0, face - 1))
     assert (seg.state[away] == FREE).all() and seg.is_floor[away].all()
+
+
+def test_the_raised_end_of_a_ramp_hit_past_it_is_no_overhang():
+    """A ramp 12 cells wide rising 1.25 cm a cell (14 deg) from the floor to 23.75 cm,
+    where it ends over the floor beyond, more than `clearance` above it; its top edge hit
+    in the cells past the end, whose floor rays saw under it: a table's rim to the
+    overhang rule, carried round the floor beside the ramp (seen over it), it covered the
+    ramp's lower cells, whose bands (from 5 cm over their floor) reach its height and did
+    not see it (ramp room 8006: 30 of its cells not floor). It is the rim of the floor
+    beside it: every ramp cell is free floor."""
+    layers = floor_cells()
+    rows, cols = np.arange(6, 18), np.arange(2, 21)
+    tops = 0.0125 * (cols - 1)
+    for col, top in zip(cols, tops, strict=True):
+        layers.levels[rows, col, 0, gk.LO] = top
+        layers.levels[rows, col, 0, gk.HI] = top + 0.002
+        layers.seen[rows, col] = heights(top - 0.01, top + 0.04) | heights(top + 0.3, 1.0)
+    past = (rows, cols[-1] + 1)
+    add_level(layers, past, tops[-1], tops[-1] + 0.002)
+    layers.seen[past] = heights(-0.01, tops[-1] - 0.025) | heights(tops[-1] + 0.025, 1.0)
+    # the floor beside it and beyond, seen over the ramp
+    over = heights(-0.01, 0.04) | heights(0.3, 1.0)
+    for side in (rows[0] - 1, rows[-1] + 1):
+        layers.seen[side, cols[0]:past[1] + 2] = over
+    layers.seen[rows[0] - 1:rows[-1] + 2, past[1] + 1] = over
+    seg = segment(layers, ROBOT)
+    ramp = np.ix_(rows[1:-1], cols)  # its side rows lie beside the floor up to 24 cm lower
+    assert seg.is_floor[ramp].all()
+    assert (seg.state[ramp] == FREE).all()

@@ -71,7 +71,7 @@ def cell_states(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         known = morphology.dilate(is_floor) | unseen.holes | unseen.lines
         known &= ~morphology.dilate(drop)
         counted = np.where(known, nk.pooled_bits(layers.seen, pool), layers.seen)
-    nk.classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height,
+    nk.classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height, is_floor,
                      robot.step_height, robot.height, layers.z_min, layers.mask_dz,
                      params.min_coverage, round(params.overhang_reach / res),
                      params.overhang_thickness, layers.origin[0], layers.origin[1], res,
