@@ -1,6 +1,7 @@
 """What the robot needs from the grid: floor segmentation and obstacle layer (`floor`), the
 exact distance field (`distance_field`), the queries a controller polls (`obstacles`) and
-Nav2-style costmaps (`costmap`). Kernels (Numba, `nogil`) are in `_kernels`.
+Nav2-style costmaps (`costmap`). Kernels (Numba, `nogil`) are in `_kernels` (queries,
+distance field) and, for the segmentation, `floor/_*_kernels.py`.
 See docs/architecture.md."""
 
 from scanmap.navigation.costmap import (

@@ -13,7 +13,6 @@ from scipy import ndimage
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers, GridConfig, HeightGrid
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation.floor import (
     FREE,
     OBSTACLE,
@@ -26,6 +25,29 @@ from scanmap.navigation.floor import (
     segment,
     segmentation,
 )
+from scanmap.navigation.floor._growth_kernels import (
+    _JUMPS,
+    _LONG_COUNTS,
+    _LONG_CROSSED,
+    _LONG_JUMPS,
+    _crossed_cells,
+    rim_cells,
+    rim_cells_reference,
+    step_edges,
+    step_edges_reference,
+    touching_floor,
+    touching_floor_reference,
+)
+from scanmap.navigation.floor._plane_kernels import (
+    _most_supported,
+    best_plane,
+    faces_below,
+    floor_candidates,
+    level_hypotheses,
+    plane_moments,
+    plane_support_reference,
+)
+from scanmap.navigation.floor._seen_kernels import below_floor, ring_heights, ring_heights_reference
 from scanmap_driver.errors import MapError
 
 from . import scenes as S
@@ -85,7 +107,7 @@ def test_plane_moments_match_numpy_on_the_points_near_the_plane():
     points[5:8] = [0.0, np.inf, 0.0]
     normal = np.array([0.004, -0.002, 1.0]) / np.linalg.norm([0.004, -0.002, 1.0])
     for tolerance in (0.03, np.inf):
-        count, centre, scatter = nk.plane_moments(np.ascontiguousarray(points.T), normal, 0.01,
+        count, centre, scatter = plane_moments(np.ascontiguousarray(points.T), normal, 0.01,
                                                   tolerance)
         near = points[(np.abs(points @ normal - 0.01) <= tolerance) & np.isfinite(points).all(1)]
         assert count == len(near) > 300 and np.isfinite(near).all()
@@ -106,7 +128,7 @@ def test_level_hypotheses_are_numpys_cross_products(seed):
     triples = rng.integers(0, len(points), (200, 3))
     triples[:3] = [[0, 1, 5], [2, 3, 4], [6, 6, 6]]
     min_nz = math.cos(math.radians(15.0))
-    normals, anchors = nk.level_hypotheses(points, triples, min_nz)
+    normals, anchors = level_hypotheses(points, triples, min_nz)
     sample = points[triples]
     want = np.cross(sample[:, 1] - sample[:, 0], sample[:, 2] - sample[:, 0])
     norms = np.linalg.norm(want, axis=1)
@@ -133,8 +155,8 @@ def test_the_most_supported_hypothesis_is_the_first_argmax_of_the_support(seed, 
     normals = np.tile(rng.normal([0.0, 0.0, 5.0], 1.0, (30, 3)), (copies, 1))
     normals /= np.linalg.norm(normals, axis=1)[:, None]
     anchors = np.tile(points[rng.integers(0, n, 30)], (copies, 1))
-    support = nk.plane_support_reference(points, anchors, normals, 0.02)
-    chosen = nk._most_supported(np.ascontiguousarray(points.T), anchors, normals, 0.02)
+    support = plane_support_reference(points, anchors, normals, 0.02)
+    chosen = _most_supported(np.ascontiguousarray(points.T), anchors, normals, 0.02)
     assert chosen == int(np.argmax(support))
 
 
@@ -153,7 +175,7 @@ def test_ransac_stops_drawing_once_the_best_plane_was_surely_drawn(better_at, co
     anchors = np.zeros((200, 3))
     anchors[:, 2] = 0.5  # no points on them
     anchors[0, 2], anchors[better_at, 2] = -0.005, 0.0075  # 800 points, and all 1000
-    assert nk._most_supported(points, anchors, normals, 0.01, confidence) == chosen
+    assert _most_supported(points, anchors, normals, 0.01, confidence) == chosen
 
 
 def test_small_holes_take_patches_inside_level_floor_only():
@@ -175,8 +197,8 @@ def test_small_holes_take_patches_inside_level_floor_only():
     expected = np.zeros(floor.shape, bool)
     expected[4:6, 2:4] = expected[4:6, 34:36] = True
     assert (holes == expected).all()
-    low, high = nk.ring_heights(*ndimage.label(~floor, np.ones((3, 3), bool)), floor, heights)
-    ref = nk.ring_heights_reference(*ndimage.label(~floor, np.ones((3, 3), bool)), floor,
+    low, high = ring_heights(*ndimage.label(~floor, np.ones((3, 3), bool)), floor, heights)
+    ref = ring_heights_reference(*ndimage.label(~floor, np.ones((3, 3), bool)), floor,
                                     heights)
     assert np.array_equal(low, ref[0]) and np.array_equal(high, ref[1])
 
@@ -188,7 +210,7 @@ def test_floor_candidates_match_a_numpy_reference():
     levels[..., gk.LO] = np.sort(lo, axis=2)
     levels[..., gk.HI] = levels[..., gk.LO] + rng.uniform(0, 0.12, (20, 30, 3))
     nlev = rng.integers(0, 4, (20, 30)).astype(np.uint8)
-    got = nk.floor_candidates(levels, nlev, 0.06, 0.2)
+    got = floor_candidates(levels, nlev, 0.06, 0.2)
     first, second = levels[:, :, 0], levels[:, :, 1]
     thin = first[..., gk.HI] - first[..., gk.LO] <= 0.06
     clear = (nlev == 1) | (second[..., gk.LO] - first[..., gk.HI] >= 0.2)
@@ -204,8 +226,8 @@ def test_touching_floor_matches_a_numpy_reference(seed, ny, nx):
     heights = rng.normal(0.0, 0.05, (ny, nx)).astype(np.float32)
     heights[rng.random((ny, nx)) < 0.2] = np.nan
     floor, cells = rng.random((ny, nx)) < 0.5, rng.random((ny, nx)) < 0.5
-    got = nk.touching_floor(heights, floor, cells, 0.05)
-    assert np.array_equal(got, nk.touching_floor_reference(heights, floor, cells, 0.05))
+    got = touching_floor(heights, floor, cells, 0.05)
+    assert np.array_equal(got, touching_floor_reference(heights, floor, cells, 0.05))
 
 
 @settings(max_examples=40, deadline=None)
@@ -225,7 +247,7 @@ def test_step_edges_match_a_numpy_reference(seed, ny, nx, depth):
     heights = heights.astype(np.float32)
     floor = (rng.random((ny, nx)) < 0.5) & ~np.isnan(heights)
     args = (levels, nlev, heights, floor, 0.05, 0.2, 0.03)
-    assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
+    assert np.array_equal(step_edges(*args), step_edges_reference(*args))
 
 
 @settings(max_examples=40, deadline=None)
@@ -245,7 +267,7 @@ def test_rim_cells_match_a_numpy_reference(seed, ny, nx, depth):
     floor = (rng.random((ny, nx)) < 0.6) & ~np.isnan(heights)
     edges = rng.random((ny, nx)) < 0.6
     args = (levels, nlev, edges, floor, heights, 0.05)
-    got, want = nk.rim_cells(*args), nk.rim_cells_reference(*args)
+    got, want = rim_cells(*args), rim_cells_reference(*args)
     for a, b in zip(got, want, strict=True):
         assert np.array_equal(a, b)
     assert got[2].dtype == np.float32
@@ -269,8 +291,8 @@ def test_a_step_edge_holds_a_face_or_its_upper_part_between_two_floors(bottom, f
         heights[0, 3:] = 0.18
     is_floor = ~np.isnan(heights)
     args = (levels, nlev, heights, is_floor, 0.05, 0.2, 0.03)
-    assert nk.step_edges(*args)[0, 2] == edge
-    assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
+    assert step_edges(*args)[0, 2] == edge
+    assert np.array_equal(step_edges(*args), step_edges_reference(*args))
 
 
 @pytest.mark.parametrize(("mean", "beyond", "rim"), [
@@ -293,7 +315,7 @@ def test_a_step_edge_whose_hits_lie_on_its_top_beside_the_face_is_the_floor_abov
         heights[0, 3] = 0.0
     nlev = np.ones((1, 5), np.uint8)
     is_floor = ~np.isnan(heights)
-    edges = nk.step_edges(levels, nlev, heights, is_floor, 0.05, 0.2, 0.03)
+    edges = step_edges(levels, nlev, heights, is_floor, 0.05, 0.2, 0.03)
     assert edges[0, 2] and edges[0, 3] == (beyond == "face")
     rows, cols, tops = _model._rims(levels, nlev, edges, is_floor, heights, 0.05)
     assert list(zip(rows, cols, strict=True)) == ([(0, 2)] if rim else [])
@@ -312,8 +334,8 @@ def test_a_step_edge_may_hold_its_face_and_top_as_two_levels(clearance, edge):
     nlev = np.array([[1, 1, 2, 1, 1]], np.uint8)
     heights = np.array([[0.18, 0.18, np.nan, 0.0, 0.0]], np.float32)
     args = (levels, nlev, heights, ~np.isnan(heights), 0.05, clearance, 0.03)
-    assert nk.step_edges(*args)[0, 2] == edge
-    assert np.array_equal(nk.step_edges(*args), nk.step_edges_reference(*args))
+    assert step_edges(*args)[0, 2] == edge
+    assert np.array_equal(step_edges(*args), step_edges_reference(*args))
 
 
 @pytest.mark.parametrize(("lo", "hi", "beside", "face"), [
@@ -329,8 +351,8 @@ def test_a_face_down_a_step_crosses_a_cell_whose_level_reaches_from_the_floor_be
     levels[0, :, 0, gk.LO] = levels[0, :, 0, gk.HI] = [beside, beside, 0.0, -0.077, -0.077]
     levels[0, 2, 0, gk.LO], levels[0, 2, 0, gk.HI] = lo, hi
     nlev = np.ones((1, 5), np.uint8)
-    candidates = nk.floor_candidates(levels, nlev, 0.06, 0.2)
-    got = nk.faces_below(levels, candidates, 0.05)
+    candidates = floor_candidates(levels, nlev, 0.06, 0.2)
+    got = faces_below(levels, candidates, 0.05)
     assert got.tolist() == [[False, False, face, False, False]]
 
 
@@ -348,7 +370,7 @@ def test_a_thin_level_whose_mean_hit_lies_more_than_a_step_down_is_below_the_flo
     levels[0, 1, 0, [gk.LO, gk.HI, gk.MZ]] = lo, hi, mean
     nlev = np.ones((1, 2), np.uint8)
     floor_height = np.zeros((1, 2), np.float32)
-    got = nk.below_floor(levels, nlev, np.zeros((1, 2), np.uint64), floor_height, 0.05,
+    got = below_floor(levels, nlev, np.zeros((1, 2), np.uint64), floor_height, 0.05,
                          -1.0, 0.025, 0.037)
     assert got.tolist() == [[False, below]]
 
@@ -374,7 +396,7 @@ def test_rays_below_the_floor_make_a_drop_off_unless_a_noisy_hit_below_floor_hit
         level, seen, below):
     levels = np.zeros((1, 1, 1, gk.N_FLOAT_FIELDS), np.float32)
     levels[0, 0, 0, [gk.LO, gk.HI, gk.MZ]] = *level, level[1] - 0.01
-    got = nk.below_floor(levels, np.ones((1, 1), np.uint8), np.array([[seen]], np.uint64),
+    got = below_floor(levels, np.ones((1, 1), np.uint8), np.array([[seen]], np.uint64),
                          np.zeros((1, 1), np.float32), 0.05, -0.35, 0.025, 0.037)
     assert got.tolist() == [[below]]
 
@@ -481,11 +503,11 @@ def test_a_long_jump_crosses_the_cells_a_jump_two_cells_on_would():
     # The cells between a jump's ends, by one rule: for two cells on, the one between
     # (straight, diagonal) or both beside a knight's move, as `_can_jump` reads them;
     # for three on, the same from either end
-    for dy, dx, ay, ax, by, bx in nk._JUMPS:
-        assert set(nk._crossed_cells(int(dy), int(dx))) == {(ay, ax), (by, bx)}
-    for (dy, dx), count, cells in zip(nk._LONG_JUMPS, nk._LONG_COUNTS, nk._LONG_CROSSED,
+    for dy, dx, ay, ax, by, bx in _JUMPS:
+        assert set(_crossed_cells(int(dy), int(dx))) == {(ay, ax), (by, bx)}
+    for (dy, dx), count, cells in zip(_LONG_JUMPS, _LONG_COUNTS, _LONG_CROSSED,
                                       strict=True):
-        back = nk._crossed_cells(int(-dy), int(-dx))
+        back = _crossed_cells(int(-dy), int(-dx))
         assert {(y, x) for y, x in cells[:count]} == {(y + dy, x + dx) for y, x in back}
         assert 2 <= count <= 4
 
@@ -737,7 +759,7 @@ def test_the_plane_fit_is_the_svd_least_squares_plane(tilt, azimuth, far, noise,
     z = 0.3 + (xy - far) @ slope + rng.normal(0.0, noise, 400)
     p = np.column_stack([xy, z])
     any_plane = np.array([[0.0, 0.0, 1.0]])  # every point is within inf of it
-    count, normal, offset = nk.best_plane(np.ascontiguousarray(p.T), np.arange(400),
+    count, normal, offset = best_plane(np.ascontiguousarray(p.T), np.arange(400),
                                           any_plane, any_plane, np.inf, 1.0, 1)
     assert count == 400
     centre = p.mean(axis=0)

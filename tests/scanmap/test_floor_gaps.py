@@ -15,10 +15,25 @@ from scipy import ndimage
 from benchmarks.bench_hazards import PARAMS, ROBOT, fuse, scene_window
 from scanmap.grid._kernels import LO
 from scanmap.grid.height_grid import GridConfig, HeightGrid
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation import floor as floor_module
 from scanmap.navigation import morphology
-from scanmap.navigation.floor import FloorConfig, RobotShape, _drop_offs, _unseen, segment
+from scanmap.navigation.floor import (
+    FloorConfig,
+    RobotShape,
+    _drop_offs,
+    _seen_kernels,
+    _states,
+    _unseen,
+    segment,
+)
+from scanmap.navigation.floor._band_kernels import classify_band, pooled_bits
+from scanmap.navigation.floor._seen_kernels import (
+    NO_SAMPLES,
+    floor_gaps,
+    floor_gaps_reference,
+    interpolated_reference,
+    lowest_seen,
+)
 from scanmap_driver.scanner_model import reference_scanner
 from scanmap_driver.sim import builtin_scene
 from scanmap_driver.sim.ideal import ideal_scans
@@ -109,7 +124,7 @@ def test_plain_floor_shows_no_dips_under_four_times_the_peak_noise():
 def test_pooled_seen_spreads_each_bin_to_the_neighbours_only():
     seen = np.zeros((7, 7), np.uint64)
     seen[3, 3] = np.uint64(1 << 20)
-    pooled = nk.pooled_bits(seen, 1)
+    pooled = pooled_bits(seen, 1)
     expected = np.zeros((7, 7), bool)
     expected[2:5, 2:5] = True
     assert ((pooled == np.uint64(1 << 20)) == expected).all()
@@ -134,11 +149,11 @@ def test_pooled_bits_and_lowest_seen_match_plain_numpy(seed, ny, nx, reach):
     bits = rng.integers(0, 64, (ny, nx)).astype(np.uint64)
     seen = np.where(rng.random((ny, nx)) < 0.3, np.uint64(0), np.uint64(1) << bits)
     seen |= np.where(rng.random((ny, nx)) < 0.5, np.uint64(1) << np.uint64(63), np.uint64(0))
-    assert np.array_equal(nk.pooled_bits(seen, reach), pooled_reference(seen, reach))
+    assert np.array_equal(pooled_bits(seen, reach), pooled_reference(seen, reach))
     low = seen & (~seen + np.uint64(1))  # the lowest set bit, 0 for none
     with np.errstate(divide="ignore"):
         expected = -0.35 + 0.025 * np.log2(low.astype(np.float64))
-    assert np.array_equal(nk.lowest_seen(seen, -0.35, 0.025), expected)
+    assert np.array_equal(lowest_seen(seen, -0.35, 0.025), expected)
 
 
 @settings(max_examples=60, deadline=None)
@@ -164,7 +179,7 @@ def test_floor_gaps_match_their_plain_reference(seed):
     labels, boxes, ok = morphology.small_patches(bare, 4, margin=2)
     near_drop = ndimage.binary_dilation(drop, np.ones((3, 3), bool))
     args = (labels, boxes, ok, near_drop, nlev, is_floor, heights, dips, STEP)
-    assert np.array_equal(nk.floor_gaps(*args), nk.floor_gaps_reference(*args))
+    assert np.array_equal(floor_gaps(*args), floor_gaps_reference(*args))
 
 
 @pytest.mark.parametrize("pooled", [False, True])
@@ -189,7 +204,7 @@ def test_band_coverage_counts_the_band_bins_seen(pooled):
         points = np.empty((*layers.shape, 2), np.float32)
         logodds = np.empty(layers.shape, np.float32)
         covered = np.zeros(layers.shape, bool)
-        nk.classify_band(layers.levels, layers.nlev, seen, counted,
+        classify_band(layers.levels, layers.nlev, seen, counted,
                          np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
                          robot.step_height, robot.height,
                          layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
@@ -198,7 +213,7 @@ def test_band_coverage_counts_the_band_bins_seen(pooled):
         assert (inner == expected).all(), (bins, hi - lo + 1)
     if pooled:  # the cell itself must have seen one of the band's bins
         seen = np.where(np.eye(*layers.shape, dtype=bool), np.uint64(0), np.uint64(band))
-        nk.classify_band(layers.levels, layers.nlev, seen, np.full(layers.shape, band, np.uint64),
+        classify_band(layers.levels, layers.nlev, seen, np.full(layers.shape, band, np.uint64),
                          np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
                          robot.step_height, robot.height,
                          layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
@@ -216,7 +231,7 @@ def test_without_pooling_the_coverage_rule_is_the_kernels(monkeypatch):
         grid.insert(points, np.array(origin), 1.0)
     layers = grid.layers((-2.0, -2.0, 2.0, 2.0))
     kernel = segment(layers, params=FloorConfig(coverage_reach=0.0))
-    monkeypatch.setattr(nk, "pooled_bits", lambda seen, reach: seen)
+    monkeypatch.setattr(_states, "pooled_bits", lambda seen, reach: seen)
     numpy_rule = segment(layers)
     assert (kernel.state == numpy_rule.state).all()
     assert (kernel.state == floor_module.FREE).sum() > 100
@@ -226,8 +241,8 @@ def interpolated(known: np.ndarray, hit: np.ndarray | None = None,
                  heights: np.ndarray | None = None, unlit_corners: bool = False) -> np.ndarray:
     hit = known.copy() if hit is None else hit
     heights = np.zeros(known.shape, np.float32) if heights is None else heights
-    out = nk.interpolated(known, hit, heights, 2, STEP, unlit_corners, nk.NO_SAMPLES)
-    assert (out == nk.interpolated_reference(known, hit, heights, 2, STEP, unlit_corners)).all()
+    out = _seen_kernels.interpolated(known, hit, heights, 2, STEP, unlit_corners, NO_SAMPLES)
+    assert (out == interpolated_reference(known, hit, heights, 2, STEP, unlit_corners)).all()
     return out
 
 
@@ -332,10 +347,10 @@ def test_interpolation_matches_its_numpy_reference(seed):
     samples[rng.random((30, 40)) < 0.2] = np.nan
     for size in (1, 2, 4):
         for unlit in (False, True):
-            assert (nk.interpolated(known, hit, heights, size, STEP, unlit, nk.NO_SAMPLES)
-                    == nk.interpolated_reference(known, hit, heights, size, STEP, unlit)).all()
-            assert (nk.interpolated(known, hit, heights, size, STEP, unlit, samples)
-                    == nk.interpolated_reference(known, hit, heights, size, STEP, unlit,
+            assert (_seen_kernels.interpolated(known, hit, heights, size, STEP, unlit, NO_SAMPLES)
+                    == interpolated_reference(known, hit, heights, size, STEP, unlit)).all()
+            assert (_seen_kernels.interpolated(known, hit, heights, size, STEP, unlit, samples)
+                    == interpolated_reference(known, hit, heights, size, STEP, unlit,
                                                  samples)).all()
 
 
@@ -348,9 +363,9 @@ def test_cells_beyond_every_span_passed_as_hits_change_no_interpolation(seed):
     for size in range(7):
         beyond = _drop_offs._beyond_spans(known, size)
         for unlit in (False, True):
-            assert np.array_equal(
-                nk.interpolated(known, hit | beyond, heights, size, STEP, unlit, nk.NO_SAMPLES),
-                nk.interpolated(known, hit, heights, size, STEP, unlit, nk.NO_SAMPLES))
+            args = (heights, size, STEP, unlit, NO_SAMPLES)
+            assert np.array_equal(_seen_kernels.interpolated(known, hit | beyond, *args),
+                                  _seen_kernels.interpolated(known, hit, *args))
 
 
 @pytest.mark.parametrize(("apart", "a", "b", "bridged"), [
@@ -376,15 +391,15 @@ def test_an_opening_is_measured_between_the_floor_samples(apart, a, b, bridged):
         cells = np.ascontiguousarray(
             samples if grid is known else samples.transpose(1, 0, 2)[:, :, ::-1])
         heights = np.zeros(grid.shape, np.float32)
-        out = nk.interpolated(grid, grid, heights, 4, STEP, False, cells)
+        out = _seen_kernels.interpolated(grid, grid, heights, 4, STEP, False, cells)
         gap = out[2, 2:1 + apart] if grid is known else out[2:1 + apart, 2]
         assert len(gap) == apart - 1
         assert gap.all() == bridged and gap.any() == bridged
         assert out.sum() == 2 + bridged * (apart - 1)
-        assert (out == nk.interpolated_reference(grid, grid, heights, 4, STEP, False,
+        assert (out == interpolated_reference(grid, grid, heights, 4, STEP, False,
                                                  cells)).all()
     heights = np.zeros(known.shape, np.float32)
-    assert nk.interpolated(known, known, heights, 4, STEP, False, nk.NO_SAMPLES)[
+    assert _seen_kernels.interpolated(known, known, heights, 4, STEP, False, NO_SAMPLES)[
         2, 2:1 + apart].all() \
         == (apart <= 5)  # without samples, to the cells' edges
 

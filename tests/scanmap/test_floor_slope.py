@@ -1,7 +1,7 @@
-"""The floor's local slope (`_kernels.local_slope`) against the closed form of a plane,
+"""The floor's local slope (`_plane_kernels.local_slope`) against the closed form of a plane,
 sampled at the cells' centres or where their hits lie, clean or noisy, and a chain of
 cells too thin for a plane: the foot of a wall, a laser line's arc; the cells a step's
-face leaves between its two floors (`_kernels.bridged_steps`)."""
+face leaves between its two floors (`_growth_kernels.bridged_steps`)."""
 
 from __future__ import annotations
 
@@ -14,9 +14,10 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from scanmap.grid.height_grid import GridConfig, HeightGrid
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation import floor
 from scanmap.navigation.floor import FloorConfig, RobotShape, _model
+from scanmap.navigation.floor._growth_kernels import bridged_steps
+from scanmap.navigation.floor._plane_kernels import local_slope
 
 from .growth import grow_region
 
@@ -33,7 +34,7 @@ def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None
     """`local_slope` of candidate heights sampled at the cells' centres (or `offsets`)."""
     if offsets is None:
         offsets = np.zeros(heights.shape + (2,))
-    return nk.local_slope(heights, offsets, REACH, step, RES, noise,
+    return local_slope(heights, offsets, REACH, step, RES, noise,
                           np.zeros(heights.shape, bool))[0]
 
 
@@ -42,7 +43,7 @@ def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None
 def test_the_slope_of_a_plane_is_its_gradient(gx, gy, base):
     y, x = np.mgrid[0:9, 0:9] * RES
     heights = (base + gx * x + gy * y).astype(np.float64)
-    slope, tangent = nk.local_slope(heights, np.zeros((9, 9, 2)), REACH, 10.0, RES, NOISE,
+    slope, tangent = local_slope(heights, np.zeros((9, 9, 2)), REACH, 10.0, RES, NOISE,
                                     np.zeros((9, 9), bool))
     assert math.isclose(slope[4, 4], math.atan(math.hypot(gx, gy)), abs_tol=1e-4)
     np.testing.assert_allclose(tangent[4, 4], (heights[4, 4], 4 * RES, 4 * RES, gx, gy),
@@ -509,7 +510,7 @@ def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(h
     a step; the kernel asked to look everywhere finds the same cells (on level floor
     with a few cells a step's face or its far side apart: bridges here and there)."""
     level = heights != np.float32(0.03)  # the face's cells are not level
-    everywhere = nk.bridged_steps(heights, level, STEP, REACH_OF_A_STEP,
+    everywhere = bridged_steps(heights, level, STEP, REACH_OF_A_STEP,
                                   np.ones(heights.shape, bool))
     assert np.array_equal(_model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP),
                           everywhere)
@@ -596,7 +597,7 @@ def test_a_window_holding_a_steps_face_fits_no_plane_so_the_floor_stays_above_it
     lower = heights < -0.05
     grown = {}
     for label, marked in (("faces", faces), ("none", np.zeros(heights.shape, bool))):
-        slope, tangent = nk.local_slope(heights, offsets, REACH, STEP, RES, NOISE, marked)
+        slope, tangent = local_slope(heights, offsets, REACH, STEP, RES, NOISE, marked)
         grown[label] = floor_from_above(heights, slope, tangent,
                                         ~np.isnan(tangent[:, :, 3]))
     assert (grown["none"] & lower).any()  # through a window on the 12 deg plane
@@ -655,7 +656,7 @@ def test_a_plane_no_other_window_round_a_cell_agrees_with_anchors_no_floor():
     heights = (np.array(SLANTED_ACROSS_FLOORS_MM) / 1000.0).astype(np.float32)
     offsets = np.stack([SLANTED_ACROSS_FLOORS_X_MM, SLANTED_ACROSS_FLOORS_Y_MM],
                        axis=-1) / 1000.0
-    slope, tangent = nk.local_slope(heights, offsets, REACH, STEP, RES, NOISE,
+    slope, tangent = local_slope(heights, offsets, REACH, STEP, RES, NOISE,
                                     np.zeros(heights.shape, bool))
     planar = ~np.isnan(tangent[:, :, 3])
     lone = (6, 4)  # its own window fits, no other round it does

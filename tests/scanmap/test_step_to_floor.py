@@ -17,7 +17,7 @@ from hypothesis.extra.numpy import arrays
 from benchmarks.bench_hazards import ROBOT, hazard_run, mapped
 from benchmarks.random_rooms import terrain_room
 from scanmap.navigation import DROP_OFF, FREE
-from scanmap.navigation._kernels import free_steps as free_steps_kernel
+from scanmap.navigation.floor._band_kernels import free_steps as free_steps_kernel
 from scanmap.navigation.morphology import dilate
 from scanmap_driver.sim import Scene, builtin_scene
 from scanmap_driver.sim.scene import FloorRegion
@@ -67,7 +67,7 @@ def free_steps(seg) -> int:
 
 
 def free_steps_reference(free, heights, step, stood):
-    """`_kernels.free_steps` in numpy: each cell against its neighbours shifted in."""
+    """`_band_kernels.free_steps` in numpy: each cell against its neighbours shifted in."""
     ny, nx = free.shape
     padded = np.pad(np.where(free, heights, np.nan), 1, constant_values=np.nan)
     centre = padded[1:-1, 1:-1]

@@ -17,7 +17,10 @@ rules:
 * `_states`: each cell's state from what occupies the robot's band above its floor,
   then the rules that keep a cell beside a drop-off from being FREE on too little.
 
-Kernels (Numba, `nogil`) are in `scanmap.navigation._kernels`.
+Kernels (Numba, `nogil`), one module per part: `_plane_kernels` (candidates, planes,
+slopes), `_growth_kernels` (the floor's growth, a step's face and edges), `_seen_kernels`
+(what the cells saw: below the floor, openings between samples) and `_band_kernels` (the
+robot's band, overhangs).
 """
 
 from scanmap.navigation._kernels import DROP_OFF, FREE, OBSTACLE, UNKNOWN

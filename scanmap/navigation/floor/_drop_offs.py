@@ -39,10 +39,16 @@ import numpy as np
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation import morphology
 from scanmap.navigation.distance_field import distance_transform
 from scanmap.navigation.floor._model import FloorModel
+from scanmap.navigation.floor._seen_kernels import (
+    NO_SAMPLES,
+    below_floor,
+    interpolated,
+    lowest_seen,
+    ring_heights,
+)
 from scanmap.navigation.floor.config import FloorConfig, RobotShape
 
 
@@ -71,17 +77,17 @@ def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # Below the lowest floor near the cell (a cell between two floors at a step is neither's)
     lowest = morphology.min_filter(np.where(np.isnan(floor_height), np.inf, floor_height), 5)
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
-    drop = nk.below_floor(layers.levels, layers.nlev, layers.seen, lowest,
+    drop = below_floor(layers.levels, layers.nlev, layers.seen, lowest,
                           robot.step_height, layers.z_min, layers.mask_dz,
                           model.one_surface) & ~is_floor & ~stood
     ranges = None  # `stood_ranges`, when a rule needs them
     if drop.any():  # and below the floor where the robot stood nearest (`_stood_floor`)
         ranges, nearest = stood_ranges(layers)
-        drop &= nk.below_floor(layers.levels, layers.nlev, layers.seen,
+        drop &= below_floor(layers.levels, layers.nlev, layers.seen,
                                _stood_floor(lowest, floor_height, nearest), robot.step_height,
                                layers.z_min, layers.mask_dz, model.one_surface)
     bottom = np.ascontiguousarray(layers.levels[:, :, 0, gk.LO])  # of each lowest level
-    lowest_free = nk.lowest_seen(layers.seen, layers.z_min, layers.mask_dz)
+    lowest_free = lowest_seen(layers.seen, layers.z_min, layers.mask_dz)
     # a step down to floor reached round its ends: spread as a drop-off is (its shadow is
     # no place to drive either), then an edge, not a drop-off (`cell_states`)
     sunk = _step_to_floor(layers.nlev, bottom, lowest_free + layers.mask_dz, drop, is_floor,
@@ -96,8 +102,8 @@ def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         known = is_floor | stood | holes
         shadow = ~morphology.dilate(known | (layers.nlev > 0) & ~drop) & (layers.nlev == 0)
         hole = round(params.max_hole / res)
-        shadow &= ~nk.interpolated(known, (layers.nlev > 0) | drop | _beyond_spans(known, hole),
-                                   floor_height, hole, robot.step_height, False, nk.NO_SAMPLES)
+        shadow &= ~interpolated(known, (layers.nlev > 0) | drop | _beyond_spans(known, hole),
+                                   floor_height, hole, robot.step_height, False, NO_SAMPLES)
         # across the scanner's view, no farther from where the robot stood than the cells
         # that show it (and half a cell, their far half: beyond a hole's far wall the
         # floor is lit, its unlit cells are gaps between the laser's lines; seen aslant,
@@ -141,9 +147,9 @@ def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # where the grid knows it (`CellLayers.seen_from`), not towards any place in
         # reach: towards each, the step took a cell of floor round a hole's corner on every
         # side (rendered random room 4006: 2.97 cells off the edge)
-        rim = (layers.nlev == 0) & ~morphology.within_distance(seeds, 1.0) & ~nk.interpolated(
+        rim = (layers.nlev == 0) & ~morphology.within_distance(seeds, 1.0) & ~interpolated(
             known, (layers.nlev > 0) | drop | _beyond_spans(known, 2), floor_height, 2,
-            robot.step_height, False, nk.NO_SAMPLES)
+            robot.step_height, False, NO_SAMPLES)
         own = _seen_from_cells(layers).reshape(-1, 2)[sources]
         own[sources < 0] = np.nan
         drop |= morphology.dilate_in_range(spread & ~seeds, rim, ranges, near, ranges, 1,
@@ -251,6 +257,6 @@ def _small_holes(nlev: np.ndarray, is_floor: np.ndarray, floor_height: np.ndarra
     ok[labels[(nlev > 0) | drop]] = False
     # The ring of a patch: floor cells next to it (a patch is a whole component of the
     # cells off the floor, so every neighbour outside it is floor)
-    low, high = nk.ring_heights(labels, count, is_floor, floor_height)
+    low, high = ring_heights(labels, count, is_floor, floor_height)
     ok &= high - low <= step
     return ok.take(labels)

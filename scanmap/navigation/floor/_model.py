@@ -26,11 +26,11 @@ of the nearest floor cell within `fill_radius` (not of a step's edge joined to t
 Floor per cell: each candidate's slope is that of the plane, fitted to the candidates'
 mean hits within `slope_reach` of a cell near it, that fits them within the noise and
 explains the cell best (at a crease a window on the cell's own side: the first rows of a
-steep ramp are steep, not half as steep; `_kernels.local_slope`); a cell steeper than
+steep ramp are steep, not half as steep; `_plane_kernels.local_slope`); a cell steeper than
 `max_slope` (default 15 deg) does not join the floor: it is never FREE, and an OBSTACLE
 where its surface rises into the robot's band; nor does one whose lowest level reaches
 from a candidate beside it more than a step down (a face the robot cannot climb crosses
-it; `_kernels.faces_below`). So a ramp within max_slope and a step within the robot's
+it; `_plane_kernels.faces_below`). So a ramp within max_slope and a step within the robot's
 step height (default 5 cm) are driven on; a steeper ramp or a higher step is not. A cell
 that holds the edge of a higher step between two floors (the raised end or a side of a
 ramp that ends above the floor beside it: one level, or levels each less than
@@ -57,9 +57,25 @@ import numpy as np
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation import morphology
 from scanmap.navigation.distance_field import distance_transform
+from scanmap.navigation.floor._growth_kernels import (
+    bridged_steps,
+    grow_region,
+    rim_cells,
+    step_edges,
+    touching_floor,
+)
+from scanmap.navigation.floor._plane_kernels import (
+    best_plane,
+    cell_points,
+    faces_below,
+    floor_candidates,
+    level_hypotheses,
+    local_slope,
+    mean_hit_heights,
+    plane_heights,
+)
 from scanmap.navigation.floor.config import FloorConfig, RobotShape
 from scanmap.navigation.floor.result import FloorPlane
 
@@ -69,8 +85,8 @@ from scanmap.navigation.floor.result import FloorPlane
 RANSAC_CONFIDENCE = 1.0 - 1e-9
 
 
-# A floor candidate this gentle (`nk.local_slope`) lies on level floor, for
-# `nk.bridged_steps`: two level floors more than a step apart are a step's two sides, not
+# A floor candidate this gentle (`local_slope`) lies on level floor, for
+# `bridged_steps`: two level floors more than a step apart are a step's two sides, not
 # a ramp (a floor's cells at 0.3 px of laser peak noise: 1.5 deg at the 90th percentile;
 # the cells a step's face crosses, 4-17 deg)
 LEVEL_SLOPE = math.radians(5.0)
@@ -109,7 +125,7 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     ny, nx = layers.shape
     res = layers.resolution
     xs, ys = layers.cell_centers()
-    cand = nk.floor_candidates(layers.levels, layers.nlev, params.thickness, params.clearance)
+    cand = floor_candidates(layers.levels, layers.nlev, params.thickness, params.clearance)
     hits_at = layers.levels[:, :, 0, gk.MX:gk.MY + 1]  # mean hit offsets (a view: copied
     # contiguous, they took a fifth more of the slope's time)
     # the most a cell's heights span on one surface one may drive on: max_slope across its
@@ -117,20 +133,20 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # three times the noise off the surface: at twice, a 14.6 deg ramp's cells 3-4 m off,
     # at 0.3 px of laser peak noise, were too thick for their mean hits to count)
     one_surface = res * math.sqrt(2.0) * math.tan(params.max_slope) + 6.0 * params.plane_noise
-    mean_heights = nk.mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
-    slope, tangents = nk.local_slope(mean_heights, hits_at,
+    mean_heights = mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
+    slope, tangents = local_slope(mean_heights, hits_at,
                                      max(round(params.slope_reach / res), 1),
                                      robot.step_height, res, params.plane_noise,
                                      _taller_than(layers, cand, robot.step_height))
     # steep, or crossed by a face down a step (no floor of its own: a step's edge between
     # two floors at most, `step_edges`)
-    steep = (slope > params.max_slope) | nk.faces_below(layers.levels, cand,
+    steep = (slope > params.max_slope) | faces_below(layers.levels, cand,
                                                         robot.step_height)  # False for NaN
     bridges = _bridged_steps(cand, slope <= LEVEL_SLOPE, robot.step_height,
                              _bridge_reach(robot, params, res)) & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
-    gy, gx, cand_points = nk.cell_points(has, level, xs, ys)
+    gy, gx, cand_points = cell_points(has, level, xs, ys)
     is_floor = np.zeros((ny, nx), bool)
     carried = is_floor  # the floor whose heights `fill_radius` carries
     planes: tuple[FloorPlane, ...] = ()
@@ -142,24 +158,24 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         close = np.zeros((ny, nx), bool)
         close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
-        is_floor = nk.grow_region(level, seeds, robot.step_height, layers.nlev == 0,
+        is_floor = grow_region(level, seeds, robot.step_height, layers.nlev == 0,
                                    math.tan(params.max_slope) * res, cand, tangents,
                                    2.0 * params.plane_noise,
-                                   nk.plane_heights(tuple(map(float, normal)), float(offset),
+                                   plane_heights(tuple(map(float, normal)), float(offset),
                                                     xs, ys),
                                    ~np.isnan(tangents[:, :, 3]))
         # one step on: a bridge joins the floor it touches, no further, and only within
         # half a step of it (nearer that floor than the other side of the step): a cell of
         # the floor below a 5.5 cm step, read 5 mm high, lay 4.9 cm under the floor's edge
         # beside it and joined it (step room 2027 at 0.3 px, FREE after its last scans)
-        joined = nk.touching_floor(cand, is_floor, bridges, 0.5 * robot.step_height)
+        joined = touching_floor(cand, is_floor, bridges, 0.5 * robot.step_height)
         is_floor |= joined
         # and its height, in between on a step's face, goes no further either: carried
         # over a lower floor 5.5 cm down, it held that floor within a step of the floor
         carried = is_floor & ~joined
         bridges &= ~joined
-        planes = _planes_of(nk.cell_points(is_floor, cand, xs, ys)[2], params, rng)
-    edges = nk.step_edges(layers.levels, layers.nlev, cand, is_floor, robot.step_height,
+        planes = _planes_of(cell_points(is_floor, cand, xs, ys)[2], params, rng)
+    edges = step_edges(layers.levels, layers.nlev, cand, is_floor, robot.step_height,
                           params.clearance, params.plane_tolerance)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
     rim_y, rim_x, rim_top = _rims(layers.levels, layers.nlev, edges, is_floor, floor_height,
@@ -172,7 +188,7 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         beyond = _carry(floor_height, carried, ~is_floor, params.fill_radius, res, margins)
     if planes:  # farther out, the largest floor plane
         unknown = np.isnan(floor_height)
-        floor_height[unknown] = nk.plane_heights(planes[0].normal, planes[0].offset, xs,
+        floor_height[unknown] = plane_heights(planes[0].normal, planes[0].offset, xs,
                                                  ys)[unknown]
     assumed = np.zeros((ny, nx), bool)
     if fallback_floor is not None:  # the caller vouches for the floor there
@@ -195,13 +211,13 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
     if len(points) < 3:
         return None
     triples = rng.integers(0, len(points), (params.ransac_iterations, 3))
-    normals, anchors = nk.level_hypotheses(np.ascontiguousarray(points, dtype=np.float64),
+    normals, anchors = level_hypotheses(np.ascontiguousarray(points, dtype=np.float64),
                                            triples, math.cos(params.max_slope))
     if not len(normals):
         return None
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
     sample = rng.integers(0, len(points), min(len(points), 4000))
-    count, normal, offset = nk.best_plane(coords, sample, anchors, normals,
+    count, normal, offset = best_plane(coords, sample, anchors, normals,
                                           params.seed_tolerance, RANSAC_CONFIDENCE, 2)
     if count < 3:
         return None
@@ -258,7 +274,7 @@ def _rims(levels: np.ndarray, nlev: np.ndarray, edges: np.ndarray, is_floor: np.
     (the face's hits beyond the rim leave the cells beyond it an edge). A face on a cell's
     boundary scatters some of its hits over it at the laser's noise, and the cells along a
     ramp's side or raised end were an obstacle where the ramp's surface covers them."""
-    return nk.rim_cells(levels, nlev, edges, is_floor, floor_height, max_step)
+    return rim_cells(levels, nlev, edges, is_floor, floor_height, max_step)
 
 
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:
@@ -275,12 +291,12 @@ def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> 
 
 def _bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach: float
                    ) -> np.ndarray:
-    """`nk.bridged_steps` (`level`: the candidates on level floor), looking only where the
+    """`bridged_steps` (`level`: the candidates on level floor), looking only where the
     candidates in the square of `reach` cells round a cell span more than `max_step` (a
     bridge needs two that far apart within `reach` of it): on level floor that is few
     cells, and their search was a twentieth of a segmentation."""
     varied = morphology.span_filter(heights, 2 * int(reach) + 1) > max_step
-    return nk.bridged_steps(heights, level, max_step, reach, varied)
+    return bridged_steps(heights, level, max_step, reach, varied)
 
 
 def _taller_than(layers: CellLayers, candidates: np.ndarray, span: float) -> np.ndarray:

@@ -42,9 +42,9 @@ import numpy as np
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation import morphology
 from scanmap.navigation._kernels import DROP_OFF, FREE, OBSTACLE, UNKNOWN
+from scanmap.navigation.floor._band_kernels import classify_band, free_steps, pooled_bits
 from scanmap.navigation.floor._drop_offs import DropOffs
 from scanmap.navigation.floor._model import FloorModel
 from scanmap.navigation.floor._unseen import Unseen
@@ -70,8 +70,8 @@ def cell_states(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     if pool:  # known floor off a drop-off's rim: the coverage over it and its neighbours
         known = morphology.dilate(is_floor) | unseen.holes | unseen.lines
         known &= ~morphology.dilate(drop)
-        counted = np.where(known, nk.pooled_bits(layers.seen, pool), layers.seen)
-    nk.classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height, is_floor,
+        counted = np.where(known, pooled_bits(layers.seen, pool), layers.seen)
+    classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height, is_floor,
                      robot.step_height, robot.height, layers.z_min, layers.mask_dz,
                      params.min_coverage, round(params.overhang_reach / res),
                      params.overhang_thickness, layers.origin[0], layers.origin[1], res,
@@ -137,7 +137,7 @@ def cell_states(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # cm in terrain rooms): no robot crosses there, so the lower one is an edge, floor
     # still as a step's edge is. The heights carried under the robot where it saw no
     # floor are left out
-    crossing = nk.free_steps((state == FREE) & (is_floor | ~stood), floor_height,
+    crossing = free_steps((state == FREE) & (is_floor | ~stood), floor_height,
                              robot.step_height, stood)
     state[crossing] = OBSTACLE
     return state, points, band_logodds, covered, crossing

@@ -36,10 +36,15 @@ import numpy as np
 
 from scanmap.grid import _kernels as gk
 from scanmap.grid.height_grid import CellLayers
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation import morphology
 from scanmap.navigation.floor._drop_offs import DropOffs, stood_ranges
 from scanmap.navigation.floor._model import FloorModel
+from scanmap.navigation.floor._seen_kernels import (
+    floor_gaps,
+    floor_samples,
+    interpolated,
+    lowest_level_below,
+)
 from scanmap.navigation.floor.config import FloorConfig, RobotShape
 
 
@@ -83,7 +88,7 @@ def unseen_cells(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     observed = known_floor | informative
     lone = ~morphology.within_distance(observed, 2.0)
     samples = _floor_samples(layers, is_floor)
-    seen_floor = nk.interpolated(known_floor, informative | lone, floor_height, 1,
+    seen_floor = interpolated(known_floor, informative | lone, floor_height, 1,
                                  robot.step_height, True, samples)
     # but not next to a sign of a hole (a drop-off, a dip): the span may cross the hole's
     # corner, from its near rim's floor to the top of its far wall
@@ -100,7 +105,7 @@ def unseen_cells(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                 & (np.abs(bottom - floor_height) <= robot.step_height)
         # An opening of at most gap cells (`interpolated`'s size + 2), measured between
         # the floor hits of the cells at its ends (from the far edge of an end without)
-        lines = nk.interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
+        lines = interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
                                 robot.step_height, True, samples) & ~seen_floor & ~foot
         if lines.any():  # not near a sign of a hole, nor within max_gap of a wider gap
             # through cells without a hit (not of the space behind a wall). A hole too
@@ -134,7 +139,7 @@ def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     with heights differing by at most `step`, none of `dips` (`_dips`): gaps between the
     laser's samples."""
     labels, boxes, ok = morphology.small_patches(bare, size, margin=2)
-    gaps = nk.floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
+    gaps = floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
                          floor_height, dips, step)
     return gaps.take(labels)
 
@@ -178,7 +183,7 @@ def _floor_samples(layers: CellLayers, is_floor: np.ndarray) -> np.ndarray:
     x and y offsets from the cell's centre, in cells), NaN off the floor: the ends of an
     opening between the laser's lines, to measure it to the hits rather than to the
     cells' edges (the hits nearest the opening lie no farther out than their mean)."""
-    return nk.floor_samples(layers.levels, layers.nlev, is_floor, layers.resolution)
+    return floor_samples(layers.levels, layers.nlev, is_floor, layers.resolution)
 
 
 def _dips(nlev: np.ndarray, bottom: np.ndarray, is_floor: np.ndarray,
@@ -199,7 +204,7 @@ def _below_model(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
     """Cells with hits, not floor, whose lowest level lies wholly more than `tolerance`
     below `floor` (the lowest floor around them, or their own): a surface below the floor
     model (a hole's far wall, seen only at its top, less than a step down)."""
-    return nk.lowest_level_below(layers.levels, layers.nlev, is_floor, floor - tolerance,
+    return lowest_level_below(layers.levels, layers.nlev, is_floor, floor - tolerance,
                                  gk.HI)
 
 
@@ -209,4 +214,4 @@ def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
     `floor` (as for `_below_model`): the far rim of a hole whose wall, seen only at its
     top, fell into the cell of the floor beyond it (one level from the wall's hits up to
     the floor's: not wholly below the floor, so not `_below_model`, yet a sign of a hole)."""
-    return nk.lowest_level_below(layers.levels, layers.nlev, is_floor, floor - depth, gk.LO)
+    return lowest_level_below(layers.levels, layers.nlev, is_floor, floor - depth, gk.LO)

@@ -62,7 +62,7 @@ class FloorConfig:
     for its coverage (0: the cell alone); the cell itself must have seen one.
     slope_reach: radius (m) of the neighbourhood a cell's floor slope is fitted over;
     plane_noise: the RMS (m) within which its cells fit one plane for it to be one
-    surface, without a crease (`_kernels.local_slope`): 3 mm, below the 4.4 mm a
+    surface, without a crease (`_plane_kernels.local_slope`): 3 mm, below the 4.4 mm a
     16 deg ramp's first row leaves with the floor before it, noise-free.
     drop_reach: how far (m) a drop-off spreads from the cells that show it through cells
     without observed floor, no farther from the nearest place the robot stood than they

@@ -9,10 +9,11 @@ import math
 import numpy as np
 
 from scanmap.grid.height_grid import CellLayers
-from scanmap.navigation import _kernels as nk
 from scanmap.navigation._kernels import OBSTACLE, UNKNOWN
 from scanmap.navigation.floor._drop_offs import drop_offs
 from scanmap.navigation.floor._model import floor_model
+from scanmap.navigation.floor._plane_kernels import plane_heights
+from scanmap.navigation.floor._seen_kernels import footprint_cells, observed_span
 from scanmap.navigation.floor._states import cell_states
 from scanmap.navigation.floor._unseen import unseen_cells
 from scanmap.navigation.floor.config import FloorConfig, RobotShape
@@ -57,7 +58,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                              margins)
     xs, ys = layers.cell_centers()
     if inner.planes:
-        floor_height = nk.plane_heights(inner.planes[0].normal, inner.planes[0].offset, xs, ys)
+        floor_height = plane_heights(inner.planes[0].normal, inner.planes[0].offset, xs, ys)
     else:
         floor_height = np.full((ny, nx), np.nan if fallback_floor is None else fallback_floor,
                                np.float32)
@@ -98,7 +99,7 @@ def _observed_box(layers: CellLayers, robot: RobotShape, reach: int) -> tuple[sl
     rays saw, and every place the robot stood, grown by `reach` cells (within the window;
     empty when nothing was observed)."""
     ny, nx = layers.shape
-    top, bottom, left, right = nk.observed_span(
+    top, bottom, left, right = observed_span(
         layers.nlev, layers.seen, np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2),
         layers.origin[0], layers.origin[1], layers.resolution)
     if bottom < 0:
@@ -153,6 +154,6 @@ def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
     robot's own body never touches unknown space where it stood, as queries measure it
     (to the cells' squares)."""
     xs, ys = layers.cell_centers()
-    return nk.footprint_cells(np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2), xs,
+    return footprint_cells(np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2), xs,
                               ys, layers.origin[0], layers.origin[1], layers.resolution,
                               radius, math.ceil(radius / layers.resolution))
