@@ -14,6 +14,7 @@ from scanmap.grid import _kernels as grid_kernels
 from scanmap.mapping import Mapper
 from scanmap.mapping.warm_up import room_scan
 from scanmap.navigation import _kernels, morphology
+from scanmap.navigation.floor import _band_kernels, _growth_kernels, _plane_kernels, _seen_kernels
 from scanmap.pipelines.offline import OFFLINE_CONFIG, preload_segmentation
 from scanmap_driver import reference_scanner
 
@@ -21,7 +22,9 @@ mapper = Mapper(reference_scanner(), OFFLINE_CONFIG, offline=True)
 for index, shift in enumerate((0.0, 0.05)):
     mapper.add(room_scan(shift, index))
 {preload}
-kernels = [k for module in (_kernels, morphology, grid_kernels) for k in vars(module).values()
+modules = (_kernels, morphology, grid_kernels, _band_kernels, _growth_kernels, _plane_kernels,
+           _seen_kernels)
+kernels = [k for module in modules for k in vars(module).values()
            if isinstance(k, numba.core.registry.CPUDispatcher)]
 before = {{k: len(k.overloads) for k in kernels}}
 mapper.segment()
