@@ -510,7 +510,7 @@ def box_slices(box: np.ndarray) -> tuple[slice, slice]:
 
 
 def small_patches(mask: np.ndarray, size: int, margin: int = 1
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Components of `mask`: labels, each label's box (x, y, width, height) and whether it
     is at most `size` cells on each side and at least `margin` cells from the window's
     edge (False for label 0, off the mask)."""

@@ -108,7 +108,7 @@ def test_plane_moments_match_numpy_on_the_points_near_the_plane():
     normal = np.array([0.004, -0.002, 1.0]) / np.linalg.norm([0.004, -0.002, 1.0])
     for tolerance in (0.03, np.inf):
         count, centre, scatter = plane_moments(np.ascontiguousarray(points.T), normal, 0.01,
-                                                  tolerance)
+                                               tolerance)
         near = points[(np.abs(points @ normal - 0.01) <= tolerance) & np.isfinite(points).all(1)]
         assert count == len(near) > 300 and np.isfinite(near).all()
         np.testing.assert_allclose(centre, near.mean(axis=0), rtol=0, atol=1e-12)
@@ -199,7 +199,7 @@ def test_small_holes_take_patches_inside_level_floor_only():
     assert (holes == expected).all()
     low, high = ring_heights(*ndimage.label(~floor, np.ones((3, 3), bool)), floor, heights)
     ref = ring_heights_reference(*ndimage.label(~floor, np.ones((3, 3), bool)), floor,
-                                    heights)
+                                 heights)
     assert np.array_equal(low, ref[0]) and np.array_equal(high, ref[1])
 
 
@@ -371,7 +371,7 @@ def test_a_thin_level_whose_mean_hit_lies_more_than_a_step_down_is_below_the_flo
     nlev = np.ones((1, 2), np.uint8)
     floor_height = np.zeros((1, 2), np.float32)
     got = below_floor(levels, nlev, np.zeros((1, 2), np.uint64), floor_height, 0.05,
-                         -1.0, 0.025, 0.037)
+                      -1.0, 0.025, 0.037)
     assert got.tolist() == [[False, below]]
 
 
@@ -397,7 +397,7 @@ def test_rays_below_the_floor_make_a_drop_off_unless_a_noisy_hit_below_floor_hit
     levels = np.zeros((1, 1, 1, gk.N_FLOAT_FIELDS), np.float32)
     levels[0, 0, 0, [gk.LO, gk.HI, gk.MZ]] = *level, level[1] - 0.01
     got = below_floor(levels, np.ones((1, 1), np.uint8), np.array([[seen]], np.uint64),
-                         np.zeros((1, 1), np.float32), 0.05, -0.35, 0.025, 0.037)
+                      np.zeros((1, 1), np.float32), 0.05, -0.35, 0.025, 0.037)
     assert got.tolist() == [[below]]
 
 
@@ -760,7 +760,7 @@ def test_the_plane_fit_is_the_svd_least_squares_plane(tilt, azimuth, far, noise,
     p = np.column_stack([xy, z])
     any_plane = np.array([[0.0, 0.0, 1.0]])  # every point is within inf of it
     count, normal, offset = best_plane(np.ascontiguousarray(p.T), np.arange(400),
-                                          any_plane, any_plane, np.inf, 1.0, 1)
+                                       any_plane, any_plane, np.inf, 1.0, 1)
     assert count == 400
     centre = p.mean(axis=0)
     reference = np.linalg.svd(p - centre, full_matrices=False)[2][-1]

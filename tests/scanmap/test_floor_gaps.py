@@ -205,19 +205,19 @@ def test_band_coverage_counts_the_band_bins_seen(pooled):
         logodds = np.empty(layers.shape, np.float32)
         covered = np.zeros(layers.shape, bool)
         classify_band(layers.levels, layers.nlev, seen, counted,
-                         np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
-                         robot.step_height, robot.height,
-                         layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
-                         layers.origin[1], layers.resolution, state, points, logodds, covered)
+                      np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
+                      robot.step_height, robot.height,
+                      layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
+                      layers.origin[1], layers.resolution, state, points, logodds, covered)
         inner = state[1:, 1:] if not pooled else state
         assert (inner == expected).all(), (bins, hi - lo + 1)
     if pooled:  # the cell itself must have seen one of the band's bins
         seen = np.where(np.eye(*layers.shape, dtype=bool), np.uint64(0), np.uint64(band))
         classify_band(layers.levels, layers.nlev, seen, np.full(layers.shape, band, np.uint64),
-                         np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
-                         robot.step_height, robot.height,
-                         layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
-                         layers.origin[1], layers.resolution, state, points, logodds, covered)
+                      np.zeros(layers.shape, np.float32), np.ones(layers.shape, bool),
+                      robot.step_height, robot.height,
+                      layers.z_min, layers.mask_dz, 0.5, 12, 0.1, layers.origin[0],
+                      layers.origin[1], layers.resolution, state, points, logodds, covered)
         assert (state[np.eye(*layers.shape, dtype=bool)] == floor_module.UNKNOWN).all()
         assert (state[~np.eye(*layers.shape, dtype=bool)] == floor_module.FREE).all()
 
@@ -351,7 +351,7 @@ def test_interpolation_matches_its_numpy_reference(seed):
                     == interpolated_reference(known, hit, heights, size, STEP, unlit)).all()
             assert (_seen_kernels.interpolated(known, hit, heights, size, STEP, unlit, samples)
                     == interpolated_reference(known, hit, heights, size, STEP, unlit,
-                                                 samples)).all()
+                                              samples)).all()
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -397,7 +397,7 @@ def test_an_opening_is_measured_between_the_floor_samples(apart, a, b, bridged):
         assert gap.all() == bridged and gap.any() == bridged
         assert out.sum() == 2 + bridged * (apart - 1)
         assert (out == interpolated_reference(grid, grid, heights, 4, STEP, False,
-                                                 cells)).all()
+                                              cells)).all()
     heights = np.zeros(known.shape, np.float32)
     assert _seen_kernels.interpolated(known, known, heights, 4, STEP, False, NO_SAMPLES)[
         2, 2:1 + apart].all() \

@@ -35,7 +35,7 @@ def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None
     if offsets is None:
         offsets = np.zeros(heights.shape + (2,))
     return local_slope(heights, offsets, REACH, step, RES, noise,
-                          np.zeros(heights.shape, bool))[0]
+                       np.zeros(heights.shape, bool))[0]
 
 
 @settings(max_examples=60, deadline=None)
@@ -44,7 +44,7 @@ def test_the_slope_of_a_plane_is_its_gradient(gx, gy, base):
     y, x = np.mgrid[0:9, 0:9] * RES
     heights = (base + gx * x + gy * y).astype(np.float64)
     slope, tangent = local_slope(heights, np.zeros((9, 9, 2)), REACH, 10.0, RES, NOISE,
-                                    np.zeros((9, 9), bool))
+                                 np.zeros((9, 9), bool))
     assert math.isclose(slope[4, 4], math.atan(math.hypot(gx, gy)), abs_tol=1e-4)
     np.testing.assert_allclose(tangent[4, 4], (heights[4, 4], 4 * RES, 4 * RES, gx, gy),
                                atol=1e-4, rtol=1e-6)
@@ -215,9 +215,9 @@ TURNED_STEP_MM = [
 def test_the_floor_grown_down_a_turned_steps_face_stops_at_the_step():
     heights = (np.array(TURNED_STEP_MM[::-1]) / 1000.0).astype(np.float32)
     bridges = _model._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
-                                   REACH_OF_A_STEP)
+                                    REACH_OF_A_STEP)
     grown = grow_region(np.where(bridges, np.nan, heights), heights > -0.003, STEP,
-                           np.isnan(heights), math.tan(FloorConfig().max_slope) * RES, heights)
+                        np.isnan(heights), math.tan(FloorConfig().max_slope) * RES, heights)
     lower = heights < -0.055
     assert lower.sum() == 14 and not (grown & lower).any()
 
@@ -248,7 +248,7 @@ def test_a_face_cell_with_both_floors_to_one_side_bridges_the_step_where_both_ar
     centre = (4, 4)
     assert bridges[centre] and not bridges[~face].any()
     assert not _model._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
-                                    REACH_OF_A_STEP)[centre]  # by the sides alone: none
+                                     REACH_OF_A_STEP)[centre]  # by the sides alone: none
     lower = heights < -0.05
     for left_out in (bridges, np.zeros(heights.shape, bool)):
         grown = grow_region(np.where(left_out, np.nan, heights), heights > -0.005, STEP,
@@ -497,7 +497,7 @@ def test_the_floor_grows_no_staircase_down_a_steps_edge():
     seeds = np.zeros((7, 12), bool)
     seeds[3, 0] = True
     grown = grow_region(heights, seeds, STEP, np.zeros((7, 12), bool),
-                           math.tan(MAX_SLOPE) * RES, heights)
+                        math.tan(MAX_SLOPE) * RES, heights)
     assert grown[:, :6].all() and not grown[:, 6:].any()
 
 
@@ -511,7 +511,7 @@ def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(h
     with a few cells a step's face or its far side apart: bridges here and there)."""
     level = heights != np.float32(0.03)  # the face's cells are not level
     everywhere = bridged_steps(heights, level, STEP, REACH_OF_A_STEP,
-                                  np.ones(heights.shape, bool))
+                               np.ones(heights.shape, bool))
     assert np.array_equal(_model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP),
                           everywhere)
 
@@ -657,7 +657,7 @@ def test_a_plane_no_other_window_round_a_cell_agrees_with_anchors_no_floor():
     offsets = np.stack([SLANTED_ACROSS_FLOORS_X_MM, SLANTED_ACROSS_FLOORS_Y_MM],
                        axis=-1) / 1000.0
     slope, tangent = local_slope(heights, offsets, REACH, STEP, RES, NOISE,
-                                    np.zeros(heights.shape, bool))
+                                 np.zeros(heights.shape, bool))
     planar = ~np.isnan(tangent[:, :, 3])
     lone = (6, 4)  # its own window fits, no other round it does
     assert heights[lone] == pytest.approx(-0.029) and slope[lone] <= MAX_SLOPE

@@ -67,7 +67,7 @@ class DropOffs:
 
 
 def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
-               model: FloorModel, stood: np.ndarray) -> DropOffs:
+              model: FloorModel, stood: np.ndarray) -> DropOffs:
     """Where the floor is missing (the module docstring's "Negative obstacles"): cells
     below the floor near them and where the robot stood, spread through the rim's shadow
     across the scanner's view and up to the rim; the small holes inside level floor."""
@@ -78,14 +78,14 @@ def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     lowest = morphology.min_filter(np.where(np.isnan(floor_height), np.inf, floor_height), 5)
     lowest = np.where(np.isfinite(lowest), lowest, floor_height).astype(np.float32)
     drop = below_floor(layers.levels, layers.nlev, layers.seen, lowest,
-                          robot.step_height, layers.z_min, layers.mask_dz,
-                          model.one_surface) & ~is_floor & ~stood
+                       robot.step_height, layers.z_min, layers.mask_dz,
+                       model.one_surface) & ~is_floor & ~stood
     ranges = None  # `stood_ranges`, when a rule needs them
     if drop.any():  # and below the floor where the robot stood nearest (`_stood_floor`)
         ranges, nearest = stood_ranges(layers)
         drop &= below_floor(layers.levels, layers.nlev, layers.seen,
-                               _stood_floor(lowest, floor_height, nearest), robot.step_height,
-                               layers.z_min, layers.mask_dz, model.one_surface)
+                            _stood_floor(lowest, floor_height, nearest), robot.step_height,
+                            layers.z_min, layers.mask_dz, model.one_surface)
     bottom = np.ascontiguousarray(layers.levels[:, :, 0, gk.LO])  # of each lowest level
     lowest_free = lowest_seen(layers.seen, layers.z_min, layers.mask_dz)
     # a step down to floor reached round its ends: spread as a drop-off is (its shadow is
@@ -103,7 +103,7 @@ def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         shadow = ~morphology.dilate(known | (layers.nlev > 0) & ~drop) & (layers.nlev == 0)
         hole = round(params.max_hole / res)
         shadow &= ~interpolated(known, (layers.nlev > 0) | drop | _beyond_spans(known, hole),
-                                   floor_height, hole, robot.step_height, False, NO_SAMPLES)
+                                floor_height, hole, robot.step_height, False, NO_SAMPLES)
         # across the scanner's view, no farther from where the robot stood than the cells
         # that show it (and half a cell, their far half: beyond a hole's far wall the
         # floor is lit, its unlit cells are gaps between the laser's lines; seen aslant,
@@ -157,7 +157,7 @@ def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                                            elsewhere._replace(above=0.0, own=own))
     holes &= ~drop
     return DropOffs(drop=drop, seeds=seeds, sunk=sunk, holes=holes, lowest=lowest,
-                     bottom=bottom, lowest_free=lowest_free, ranges=ranges)
+                    bottom=bottom, lowest_free=lowest_free, ranges=ranges)
 
 
 def stood_ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:

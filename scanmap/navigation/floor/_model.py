@@ -116,8 +116,8 @@ class FloorModel:
 
 
 def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
-                 fallback_floor: float | None, margins: tuple[int, int, int, int],
-                 stood: np.ndarray) -> FloorModel:
+                fallback_floor: float | None, margins: tuple[int, int, int, int],
+                stood: np.ndarray) -> FloorModel:
     """The floor (the module docstring's "Floor" and "Floor per cell"): candidates, their
     slopes, the dominant plane's region grown over them, the step's edges between two
     floors and the floor heights, carried into the cells without floor."""
@@ -135,13 +135,13 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     one_surface = res * math.sqrt(2.0) * math.tan(params.max_slope) + 6.0 * params.plane_noise
     mean_heights = mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
     slope, tangents = local_slope(mean_heights, hits_at,
-                                     max(round(params.slope_reach / res), 1),
-                                     robot.step_height, res, params.plane_noise,
-                                     _taller_than(layers, cand, robot.step_height))
+                                  max(round(params.slope_reach / res), 1),
+                                  robot.step_height, res, params.plane_noise,
+                                  _taller_than(layers, cand, robot.step_height))
     # steep, or crossed by a face down a step (no floor of its own: a step's edge between
     # two floors at most, `step_edges`)
     steep = (slope > params.max_slope) | faces_below(layers.levels, cand,
-                                                        robot.step_height)  # False for NaN
+                                                     robot.step_height)  # False for NaN
     bridges = _bridged_steps(cand, slope <= LEVEL_SLOPE, robot.step_height,
                              _bridge_reach(robot, params, res)) & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)
@@ -159,11 +159,11 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         close[gy, gx] = np.abs(cand_points @ normal - offset) <= params.seed_tolerance
         seeds &= morphology.large_components(seeds, params.min_seed_cells) | close
         is_floor = grow_region(level, seeds, robot.step_height, layers.nlev == 0,
-                                   math.tan(params.max_slope) * res, cand, tangents,
-                                   2.0 * params.plane_noise,
-                                   plane_heights(tuple(map(float, normal)), float(offset),
-                                                    xs, ys),
-                                   ~np.isnan(tangents[:, :, 3]))
+                               math.tan(params.max_slope) * res, cand, tangents,
+                               2.0 * params.plane_noise,
+                               plane_heights(tuple(map(float, normal)), float(offset),
+                                             xs, ys),
+                               ~np.isnan(tangents[:, :, 3]))
         # one step on: a bridge joins the floor it touches, no further, and only within
         # half a step of it (nearer that floor than the other side of the step): a cell of
         # the floor below a 5.5 cm step, read 5 mm high, lay 4.9 cm under the floor's edge
@@ -176,7 +176,7 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         bridges &= ~joined
         planes = _planes_of(cell_points(is_floor, cand, xs, ys)[2], params, rng)
     edges = step_edges(layers.levels, layers.nlev, cand, is_floor, robot.step_height,
-                          params.clearance, params.plane_tolerance)
+                       params.clearance, params.plane_tolerance)
     floor_height = np.where(is_floor, cand, np.nan).astype(np.float32)
     rim_y, rim_x, rim_top = _rims(layers.levels, layers.nlev, edges, is_floor, floor_height,
                                   robot.step_height)
@@ -189,16 +189,16 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     if planes:  # farther out, the largest floor plane
         unknown = np.isnan(floor_height)
         floor_height[unknown] = plane_heights(planes[0].normal, planes[0].offset, xs,
-                                                 ys)[unknown]
+                                              ys)[unknown]
     assumed = np.zeros((ny, nx), bool)
     if fallback_floor is not None:  # the caller vouches for the floor there
         assumed = np.isnan(floor_height)
         floor_height[assumed] = fallback_floor
     edges &= ~stood
     return FloorModel(candidates=cand, hits_at=hits_at, one_surface=one_surface,
-                       slope=slope, steep=steep, bridges=bridges, is_floor=is_floor,
-                       planes=planes, edges=edges, floor_height=floor_height,
-                       assumed=assumed, beyond=beyond)
+                      slope=slope, steep=steep, bridges=bridges, is_floor=is_floor,
+                      planes=planes, edges=edges, floor_height=floor_height,
+                      assumed=assumed, beyond=beyond)
 
 
 def ransac_plane(points: np.ndarray, params: FloorConfig,
@@ -212,13 +212,13 @@ def ransac_plane(points: np.ndarray, params: FloorConfig,
         return None
     triples = rng.integers(0, len(points), (params.ransac_iterations, 3))
     normals, anchors = level_hypotheses(np.ascontiguousarray(points, dtype=np.float64),
-                                           triples, math.cos(params.max_slope))
+                                        triples, math.cos(params.max_slope))
     if not len(normals):
         return None
     coords = np.ascontiguousarray(points.T, dtype=np.float64)
     sample = rng.integers(0, len(points), min(len(points), 4000))
     count, normal, offset = best_plane(coords, sample, anchors, normals,
-                                          params.seed_tolerance, RANSAC_CONFIDENCE, 2)
+                                       params.seed_tolerance, RANSAC_CONFIDENCE, 2)
     if count < 3:
         return None
     if normal[2] < math.cos(params.max_slope):

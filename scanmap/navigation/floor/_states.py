@@ -52,8 +52,8 @@ from scanmap.navigation.floor.config import FloorConfig, RobotShape
 
 
 def cell_states(layers: CellLayers, robot: RobotShape, params: FloorConfig,
-                 model: FloorModel, drops: DropOffs, unseen: Unseen, stood: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                model: FloorModel, drops: DropOffs, unseen: Unseen, stood: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Each cell's state, obstacle point and band log-odds (the module docstring's
     "Obstacles"), the cells that may lie under an overhanging board, and the lower of two
     FREE cells a step apart (made an OBSTACLE)."""
@@ -72,10 +72,10 @@ def cell_states(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         known &= ~morphology.dilate(drop)
         counted = np.where(known, pooled_bits(layers.seen, pool), layers.seen)
     classify_band(layers.levels, layers.nlev, layers.seen, counted, floor_height, is_floor,
-                     robot.step_height, robot.height, layers.z_min, layers.mask_dz,
-                     params.min_coverage, round(params.overhang_reach / res),
-                     params.overhang_thickness, layers.origin[0], layers.origin[1], res,
-                     state, points, band_logodds, covered, params.min_logodds)
+                  robot.step_height, robot.height, layers.z_min, layers.mask_dz,
+                  params.min_coverage, round(params.overhang_reach / res),
+                  params.overhang_thickness, layers.origin[0], layers.origin[1], res,
+                  state, points, band_logodds, covered, params.min_logodds)
     state[(state == FREE) & unseen.unlit] = UNKNOWN
     state[model.edges] = OBSTACLE  # floor on both sides, a step the robot cannot take between
     state[stood & (state != OBSTACLE) & ~covered] = FREE  # not under a board seen overhead
@@ -138,7 +138,7 @@ def cell_states(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # still as a step's edge is. The heights carried under the robot where it saw no
     # floor are left out
     crossing = free_steps((state == FREE) & (is_floor | ~stood), floor_height,
-                             robot.step_height, stood)
+                          robot.step_height, stood)
     state[crossing] = OBSTACLE
     return state, points, band_logodds, covered, crossing
 

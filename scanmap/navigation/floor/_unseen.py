@@ -89,7 +89,7 @@ def unseen_cells(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     lone = ~morphology.within_distance(observed, 2.0)
     samples = _floor_samples(layers, is_floor)
     seen_floor = interpolated(known_floor, informative | lone, floor_height, 1,
-                                 robot.step_height, True, samples)
+                              robot.step_height, True, samples)
     # but not next to a sign of a hole (a drop-off, a dip): the span may cross the hole's
     # corner, from its near rim's floor to the top of its far wall
     seen_floor &= known_floor | ~morphology.dilate(drop | dips)
@@ -106,7 +106,7 @@ def unseen_cells(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         # An opening of at most gap cells (`interpolated`'s size + 2), measured between
         # the floor hits of the cells at its ends (from the far edge of an end without)
         lines = interpolated(known_floor | foot, informative | wide, floor_height, gap - 2,
-                                robot.step_height, True, samples) & ~seen_floor & ~foot
+                             robot.step_height, True, samples) & ~seen_floor & ~foot
         if lines.any():  # not near a sign of a hole, nor within max_gap of a wider gap
             # through cells without a hit (not of the space behind a wall). A hole too
             # narrow to hold a `wide` cell (under gap + 2 cells) shows at most its far
@@ -140,7 +140,7 @@ def _lit_gaps(bare: np.ndarray, nlev: np.ndarray, is_floor: np.ndarray,
     laser's samples."""
     labels, boxes, ok = morphology.small_patches(bare, size, margin=2)
     gaps = floor_gaps(labels, boxes, ok, morphology.dilate(drop), nlev, is_floor,
-                         floor_height, dips, step)
+                      floor_height, dips, step)
     return gaps.take(labels)
 
 
@@ -205,7 +205,7 @@ def _below_model(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,
     below `floor` (the lowest floor around them, or their own): a surface below the floor
     model (a hole's far wall, seen only at its top, less than a step down)."""
     return lowest_level_below(layers.levels, layers.nlev, is_floor, floor - tolerance,
-                                 gk.HI)
+                              gk.HI)
 
 
 def _reaching_below(layers: CellLayers, is_floor: np.ndarray, floor: np.ndarray,

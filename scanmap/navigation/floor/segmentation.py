@@ -138,7 +138,7 @@ def _segment(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     drops = drop_offs(layers, robot, params, model, stood)
     unseen = unseen_cells(layers, robot, params, model, drops, stood)
     state, points, band_logodds, covered, crossing = cell_states(layers, robot, params, model,
-                                                                  drops, unseen, stood)
+                                                                 drops, unseen, stood)
     is_floor = ((model.is_floor | stood | unseen.holes & ~unseen.dim)
                 & ((state != OBSTACLE) | crossing) & ~unseen.drop & ~covered) | model.edges
     return Segmentation(origin=layers.origin, resolution=layers.resolution, robot=robot,
@@ -155,5 +155,5 @@ def _footprint_cells(layers: CellLayers, radius: float) -> np.ndarray:
     (to the cells' squares)."""
     xs, ys = layers.cell_centers()
     return footprint_cells(np.asarray(layers.stood, dtype=np.float64).reshape(-1, 2), xs,
-                              ys, layers.origin[0], layers.origin[1], layers.resolution,
-                              radius, math.ceil(radius / layers.resolution))
+                           ys, layers.origin[0], layers.origin[1], layers.resolution,
+                           radius, math.ceil(radius / layers.resolution))
