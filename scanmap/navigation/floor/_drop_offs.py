@@ -57,7 +57,6 @@ class DropOffs:
     """What `drop_offs` found: where the floor is missing, and the cells' depths."""
 
     drop: np.ndarray  # DROP_OFF cells (the step-down faces among them: `sunk`)
-    seeds: np.ndarray  # the cells that show a drop-off themselves, before the spread
     sunk: np.ndarray  # the face of a step down to floor reached round its ends
     holes: np.ndarray  # small patches without a hit inside level floor (`_small_holes`)
     lowest: np.ndarray  # the lowest floor near each cell (5 x 5)
@@ -156,8 +155,8 @@ def drop_offs(layers: CellLayers, robot: RobotShape, params: FloorConfig,
                                            viewed_from, 0.5,
                                            elsewhere._replace(above=0.0, own=own))
     holes &= ~drop
-    return DropOffs(drop=drop, seeds=seeds, sunk=sunk, holes=holes, lowest=lowest,
-                    bottom=bottom, lowest_free=lowest_free, ranges=ranges)
+    return DropOffs(drop=drop, sunk=sunk, holes=holes, lowest=lowest, bottom=bottom,
+                    lowest_free=lowest_free, ranges=ranges)
 
 
 def stood_ranges(layers: CellLayers) -> tuple[np.ndarray, np.ndarray]:

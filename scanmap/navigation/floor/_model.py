@@ -101,7 +101,6 @@ FACE_SPAN = 0.17
 class FloorModel:
     """What `floor_model` found: the floor and its height in every cell of a window."""
 
-    candidates: np.ndarray  # (ny, nx) each cell's floor candidate height, NaN where none
     hits_at: np.ndarray  # (ny, nx, 2) mean hit offsets of each cell's lowest level
     one_surface: float  # the most a cell's heights span on one drivable surface (m)
     slope: np.ndarray  # (ny, nx) each candidate's slope (rad)
@@ -195,10 +194,9 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         assumed = np.isnan(floor_height)
         floor_height[assumed] = fallback_floor
     edges &= ~stood
-    return FloorModel(candidates=cand, hits_at=hits_at, one_surface=one_surface,
-                      slope=slope, steep=steep, bridges=bridges, is_floor=is_floor,
-                      planes=planes, edges=edges, floor_height=floor_height,
-                      assumed=assumed, beyond=beyond)
+    return FloorModel(hits_at=hits_at, one_surface=one_surface, slope=slope, steep=steep,
+                      bridges=bridges, is_floor=is_floor, planes=planes, edges=edges,
+                      floor_height=floor_height, assumed=assumed, beyond=beyond)
 
 
 def ransac_plane(points: np.ndarray, params: FloorConfig,
