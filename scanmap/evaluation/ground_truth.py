@@ -79,6 +79,7 @@ def statistics(values: np.ndarray) -> dict[str, float]:
 RANGE_TRUTH_FIELDS = ("frame", "u", "base", "primary", "shadowed")  # `range_errors` reads
 GROSS_RANGE = 0.05  # m: a range error beyond the paper's accuracy, counted on its own
 EDGE_RASTER = 0.01  # m: cells of the truth raster a drop-off's edge is measured on
+FACE_MARGIN = 0.002  # m: `face_cells` samples this far past a cell's edges
 
 
 def range_errors(scan: Scan, truth: ScanTruth, model: ScannerModel,
@@ -239,9 +240,14 @@ def face_cells(scene: Scene, seg: Segmentation, world_from_map: np.ndarray,
     the scene's floor at `samples` x `samples` points of the cell, its edges included,
     spans more than `step` (a 15 deg slope spans 1.9 cm across a 5 cm cell's diagonal).
     Its edges count: a face a few mm inside a cell puts its hits there, and the samples
-    of the cell's inside all lie on one side of it."""
+    of the cell's inside all lie on one side of it. So does a face on an edge, for both
+    cells it runs between (its hits fall either side): the samples reach FACE_MARGIN past
+    the edges, where a region's outline, which holds its own edge, put an edge's samples
+    on the region's side alone (random room 11106's ramp, its side on a row of cells'
+    lower edges: the 12 cells above, on the ramp, were scored, those below were not)."""
     rows, cols = np.nonzero(cells)
-    within = np.linspace(0.0, 1.0, samples)
+    reach = FACE_MARGIN / seg.resolution
+    within = np.linspace(-reach, 1.0 + reach, samples)
     dx, dy = (a.ravel() for a in np.meshgrid(within, within))
     x = seg.origin[0] + (cols[:, None] + dx) * seg.resolution
     y = seg.origin[1] + (rows[:, None] + dy) * seg.resolution

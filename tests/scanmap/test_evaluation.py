@@ -323,6 +323,23 @@ def test_a_face_higher_than_a_step_is_found_in_the_cells_it_crosses(height, grad
     assert high_end.sum() >= 8  # the 0.5 m high end's cells, along all of it
 
 
+@pytest.mark.parametrize("shift", [0.0, 0.0015, -0.0015])
+def test_a_face_on_a_cells_edge_is_found_in_both_cells_it_runs_between(shift):
+    """A platform's side on (or within 2 mm of) the edge between two rows of cells: its
+    hits fall either side, so both rows hold it. The region's outline holds its own
+    edge, and the edge's samples had found it in the row outside alone."""
+    scene = ramp_scene(0.10, 0.0).moved(0.0, shift, 0.0)  # sides at y = +-0.25 + shift
+    seg = segmentation_of(truth_raster(scene), origin=(0.0, -1.0))
+    found = evaluation.face_cells(scene, seg, np.eye(4), np.ones(seg.shape, bool), 0.05)
+    x = seg.origin[0] + (np.arange(seg.shape[1]) + 0.5) * seg.resolution
+    along = (x > 1.17) & (x < 1.57)  # the side's cells, clear of its ends
+    for y_centre in (0.225, 0.275, -0.225, -0.275):
+        row = round((y_centre - seg.origin[1]) / seg.resolution - 0.5)
+        assert found[row, along].all()
+    inner = round((0.175 - seg.origin[1]) / seg.resolution - 0.5)
+    assert not found[inner, along].any()  # a cell away from the side holds none
+
+
 def test_the_traversable_ramp_f1_leaves_out_the_cells_a_face_crosses():
     """`hazards`' ramp up to its 10 cm platform stands higher than a step at its sides'
     upper part; shifted off the cells' boundaries, its sides cross cells. Those cells
