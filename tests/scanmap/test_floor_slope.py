@@ -27,6 +27,7 @@ REACH = 2
 REACH_OF_A_STEP = _model._bridge_reach(RobotShape(), FloorConfig(), RES)  # `bridged_steps`'
 NOISE = FloorConfig().plane_noise
 MAX_SLOPE = FloorConfig().max_slope
+DEFAULT_ROBOT = (RobotShape(), FloorConfig(), RES)  # `_bridged_steps`' robot
 
 
 def slope_of(heights: np.ndarray, step: float = STEP, offsets: np.ndarray | None = None,
@@ -188,7 +189,7 @@ def _row(*heights: float) -> np.ndarray:
 ])
 def test_bridged_steps_are_the_cells_between_two_sides_of_a_step(heights, bridges):
     row = _row(*heights)
-    flagged = _model._bridged_steps(row, np.zeros(row.shape, bool), STEP, REACH_OF_A_STEP)
+    flagged = _model._bridged_steps(row, np.zeros(row.shape, bool), *DEFAULT_ROBOT)
     assert tuple(np.flatnonzero(flagged[1])) == bridges
     assert not flagged[0].any() and not flagged[2].any()
 
@@ -214,8 +215,8 @@ TURNED_STEP_MM = [
 
 def test_the_floor_grown_down_a_turned_steps_face_stops_at_the_step():
     heights = (np.array(TURNED_STEP_MM[::-1]) / 1000.0).astype(np.float32)
-    bridges = _model._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
-                                    REACH_OF_A_STEP)
+    bridges = _model._bridged_steps(heights, np.zeros(heights.shape, bool),
+                                    *DEFAULT_ROBOT)
     grown = grow_region(np.where(bridges, np.nan, heights), heights > -0.003, STEP,
                         np.isnan(heights), math.tan(FloorConfig().max_slope) * RES, heights)
     lower = heights < -0.055
@@ -244,11 +245,11 @@ def test_a_face_cell_with_both_floors_to_one_side_bridges_the_step_where_both_ar
     heights = (np.array(SPARSE_FACE_MM[::-1]) / 1000.0).astype(np.float32)
     face = (heights < -0.01) & (heights > -0.05)
     level = ~face & ~np.isnan(heights)  # the floors' cells, 0-1 deg; the face's 4-17 deg
-    bridges = _model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP)
+    bridges = _model._bridged_steps(heights, level, *DEFAULT_ROBOT)
     centre = (4, 4)
     assert bridges[centre] and not bridges[~face].any()
-    assert not _model._bridged_steps(heights, np.zeros(heights.shape, bool), STEP,
-                                     REACH_OF_A_STEP)[centre]  # by the sides alone: none
+    assert not _model._bridged_steps(heights, np.zeros(heights.shape, bool),
+                                     *DEFAULT_ROBOT)[centre]  # by the sides alone: none
     lower = heights < -0.05
     for left_out in (bridges, np.zeros(heights.shape, bool)):
         grown = grow_region(np.where(left_out, np.nan, heights), heights > -0.005, STEP,
@@ -377,7 +378,40 @@ def test_no_cell_of_a_ramp_within_max_slope_bridges_a_step(degrees, direction, b
     rise = math.tan(math.radians(degrees)) * (math.cos(direction) * x + math.sin(direction) * y)
     heights = (base + rise).astype(np.float32)
     level = np.full(heights.shape, degrees <= math.degrees(_model.LEVEL_SLOPE))
-    assert not _model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP).any()
+    assert not _model._bridged_steps(heights, level, *DEFAULT_ROBOT).any()
+
+
+@settings(max_examples=60, deadline=None)
+@given(degrees=st.floats(0.0, 19.0), direction=st.floats(0.0, 2.0 * math.pi),
+       seed=st.integers(0, 2**32 - 1))
+def test_no_cell_of_a_ramp_within_a_steep_slope_bridges_a_low_step(degrees, direction, seed):
+    # A robot with a 3 cm step and 20 deg: `bridged_steps` looks two cells across, where
+    # a ramp steeper than 16.7 deg rises more than a step (ramp room 11203's 17.2 deg
+    # ramp: 250 of its 274 cells bridges, not floor). The middles of the cells' levels
+    # stray from the ramp's plane at their centres where the lines cross the cells
+    # unevenly (here by as little as leaves cells next to each other within a step);
+    # their mean hits lie on it
+    robot, params = RobotShape(step_height=0.03), FloorConfig(max_slope=math.radians(20.0))
+    assert _model._bridge_reach(robot, params, RES) == 2.0 > _model._ramp_run(robot, params,
+                                                                               RES)
+    rng = np.random.default_rng(seed)
+    gradient = math.tan(math.radians(degrees)) * np.array([math.cos(direction),
+                                                           math.sin(direction)])
+    y, x = np.mgrid[0:11, 0:11] * RES
+    offsets = rng.uniform(-0.5 * RES, 0.5 * RES, (11, 11, 2)).astype(np.float32)
+    hit_heights = ((x + offsets[..., 0]) * gradient[0]
+                   + (y + offsets[..., 1]) * gradient[1]).astype(np.float32)
+    middles = (x * gradient[0] + y * gradient[1]
+               + rng.uniform(-0.0025, 0.0025, x.shape)).astype(np.float32)
+    level = np.full(x.shape, degrees <= math.degrees(_model.LEVEL_SLOPE))
+    assert not _model._bridged_steps(middles, level, robot, params, RES,
+                                     (hit_heights, offsets)).any()
+    # a 4 cm step, a face cell half way down between its level floors, is one still
+    heights = np.zeros((9, 9), np.float32)
+    heights[:, 5:] = -0.04
+    heights[:, 4] = -0.02
+    bridges = _model._bridged_steps(heights, heights != np.float32(-0.02), robot, params, RES)
+    assert bridges[:, 4].all()
 
 
 def test_a_raised_ramps_cells_are_no_bridges_for_a_robot_with_a_high_step_and_a_low_slope():
@@ -393,14 +427,14 @@ def test_a_raised_ramps_cells_are_no_bridges_for_a_robot_with_a_high_step_and_a_
     heights[8:] = np.arange(28) * RES * math.tan(math.radians(7.7))
     level = np.zeros(heights.shape, bool)
     level[:8] = True
-    bridges = _model._bridged_steps(heights, level, robot.step_height, reach)
+    bridges = _model._bridged_steps(heights, level, robot, params, RES)
     # next to its side face, where that rises higher than a step, a cell or two may be
     # (as for the default robot); past them none (0.51 m across: 73 cells, rows 8-17)
     assert not bridges[10:].any() and bridges.sum() <= 10
     # a step of 12 cm beside the same floor is bridged still, a face cell between
     heights[8:] = 0.12
     heights[8, :] = 0.06
-    assert _model._bridged_steps(heights, level, robot.step_height, reach)[8].all()
+    assert _model._bridged_steps(heights, level, robot, params, RES)[8].all()
 
 
 @settings(max_examples=40, deadline=None)
@@ -511,8 +545,11 @@ def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(h
     with a few cells a step's face or its far side apart: bridges here and there)."""
     level = heights != np.float32(0.03)  # the face's cells are not level
     everywhere = bridged_steps(heights, level, STEP, REACH_OF_A_STEP,
-                               np.ones(heights.shape, bool))
-    assert np.array_equal(_model._bridged_steps(heights, level, STEP, REACH_OF_A_STEP),
+                               np.ones(heights.shape, bool), heights,
+                               np.zeros((*heights.shape, 2), np.float32), RES,
+                               _model._ramp_run(RobotShape(), FloorConfig(), RES),
+                               math.tan(MAX_SLOPE) / _model.RAMP_SHARE)
+    assert np.array_equal(_model._bridged_steps(heights, level, *DEFAULT_ROBOT),
                           everywhere)
 
 

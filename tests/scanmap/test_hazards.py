@@ -658,15 +658,18 @@ def test_a_step_down_whose_face_holds_a_seed_of_the_floor_plane_is_never_free():
     assert hazard_run(6, scene=step_room(1022), pixel_sigma=0.3)["drop_free_any_scan"] == 0
 
 
-@pytest.mark.parametrize("step, degrees", [(0.03, 20.0), (0.1, 10.0)])
-def test_another_robot_description_still_finds_the_ramps_and_the_drop_offs(step, degrees):
+@pytest.mark.parametrize("draw, seed, step, degrees", [
+    (random_room, 1, 0.03, 20.0), (random_room, 1, 0.1, 10.0), (ramp_room, 11203, 0.03, 20.0)])
+def test_another_robot_description_still_finds_the_ramps_and_the_drop_offs(draw, seed, step,
+                                                                          degrees):
     # The rules read the robot description. With a 3 cm step (the floor plane's seed
     # tolerance) and 20 deg, seeds anchored at the plane's height let the floor climb no
-    # ramp (traversable F1 0.37 here, 0.992 before and after); with a 10 cm step and 10
-    # deg, `bridged_steps` looked 0.51 m across and took a third of the 7.7 deg ramp for
-    # a step's face (0.75, now 1.0)
+    # ramp (traversable F1 0.37 in random room 1, 0.992 before and after); with a 10 cm
+    # step and 10 deg, `bridged_steps` looked 0.51 m across and took a third of the 7.7
+    # deg ramp for a step's face (0.75, now 1.0); with 3 cm and 20 deg it looked two
+    # cells across, where ramp room 11203's 17.2 deg ramp rises 3.1 cm (0.736, now 0.998)
     robot, params = RobotShape(step_height=step), FloorConfig(max_slope=math.radians(degrees))
-    measures = hazard_run(scene=random_room(1), robot=robot, params=params)
+    measures = hazard_run(scene=draw(seed), robot=robot, params=params)
     assert measures["ramp_traversable_f1"] >= 0.97
     assert measures["drop_free_any_scan"] == 0
 

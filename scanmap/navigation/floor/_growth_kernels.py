@@ -427,7 +427,8 @@ def _spans_no_step(heights: np.ndarray, y: int, x: int, far: float, max_step: fl
 
 @njit(cache=True, nogil=True)
 def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach: float,
-                  varied: np.ndarray) -> np.ndarray:
+                  varied: np.ndarray, hit_heights: np.ndarray, hits_at: np.ndarray,
+                  res: float, run: float, max_gradient: float) -> np.ndarray:
     """Candidates that bridge a step too high for the robot: within `max_step` of two
     candidates that lie more than max_step apart in height, within `reach` cells of each
     other and on either side of it (inside the circle their distance spans) or both on
@@ -437,7 +438,15 @@ def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach
     chain onto the floor below: 0, -2, -6, -8 cm down an 8 cm step, or 0, -1.6, -2.6,
     -3.5, -4.9, -6.1 cm where a turned 6 cm step's face crosses the cells at a slant, its
     two sides three cells apart. `reach` (cells) keeps a ramp within the robot's slope
-    clear of it (its heights that far apart differ by less than a step). A cell level
+    clear of it (its heights that far apart differ by less than a step) as far as `run`
+    (cells: a ramp at the robot's slope rises nine tenths of a step across it). Two
+    sides farther apart (`reach` is two cells at least) count only where the slope
+    between their mean hits (`hit_heights`, where `hits_at` puts them: m from the cells'
+    centres) is steeper than `max_gradient`: a robot with a 3 cm step and 20 deg took
+    every inner cell of a 17.2 deg ramp for a bridge, its cells two apart 3.1 cm apart
+    (ramp room 11203: 250 of its 274 cells not floor; `heights`, the middles of the
+    cells' levels, stray up to a centimetre from the ramp's plane, and a bound on them
+    left 70). A cell level
     with one side (a ramp's edge beside its face) is no bridge, nor one at a ramp's side
     beside the floor (the ramp rises along it, the floor lies across), unless both are
     level: where the laser's lines cross a turned step's face sparsely, the floor above
@@ -449,11 +458,12 @@ def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach
     ny, nx = heights.shape
     out = np.zeros((ny, nx), np.bool_)
     margin = 0.1 * max_step
-    near2 = reach * reach
+    near2, run2 = reach * reach, run * run
     cells = int(reach)
     side = 2 * cells + 1
-    # (y, x, height, level) of the candidates above the cell and below it, within a step
-    above, below = np.empty((side * side, 4)), np.empty((side * side, 4))
+    # (y, x, height, level, and the mean hit's x, y (m) and height) of the candidates
+    # above the cell and below it, within a step
+    above, below = np.empty((side * side, 7)), np.empty((side * side, 7))
     for y in range(ny):
         for x in range(nx):
             hd = heights[y, x]
@@ -467,27 +477,46 @@ def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach
                         continue
                     h = heights[yy, xx]
                     if margin < h - hd <= max_step:  # False for NaN
-                        above[n_above, 0], above[n_above, 1] = yy, xx
-                        above[n_above, 2], above[n_above, 3] = h, level[yy, xx]
+                        _note(above, n_above, yy, xx, h, level, hit_heights, hits_at, res)
                         n_above += 1
                         top = max(top, h)
                     elif margin < hd - h <= max_step:
-                        below[n_below, 0], below[n_below, 1] = yy, xx
-                        below[n_below, 2], below[n_below, 3] = h, level[yy, xx]
+                        _note(below, n_below, yy, xx, h, level, hit_heights, hits_at, res)
                         n_below += 1
                         bottom = min(bottom, h)
             if top - bottom <= max_step:  # also when either side has none
                 continue
             for i in range(n_above):
                 for j in range(n_below):
-                    if above[i, 2] - below[j, 2] > max_step \
-                            and (above[i, 0] - below[j, 0]) ** 2 \
-                            + (above[i, 1] - below[j, 1]) ** 2 <= near2 \
-                            and ((above[i, 0] - y) * (below[j, 0] - y)
-                                 + (above[i, 1] - x) * (below[j, 1] - x) <= 0.0
+                    apart2 = (above[i, 0] - below[j, 0]) ** 2 + (above[i, 1] - below[j, 1]) ** 2
+                    if above[i, 2] - below[j, 2] > max_step and apart2 <= near2 \
+                            and (((above[i, 0] - y) * (below[j, 0] - y)
+                                  + (above[i, 1] - x) * (below[j, 1] - x) <= 0.0
+                                  and (apart2 <= run2
+                                       or _steeper(above, i, below, j, max_gradient)))
                                  or (above[i, 3] > 0.0 and below[j, 3] > 0.0)):
                         out[y, x] = True
                         break
                 if out[y, x]:
                     break
     return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _note(found: np.ndarray, n: int, y: int, x: int, height: float, level: np.ndarray,
+          hit_heights: np.ndarray, hits_at: np.ndarray, res: float) -> None:
+    """Row n of `bridged_steps`' candidates `found`: cell (y, x), its height, whether it
+    is level, and where its mean hit lies (x, y in m, and its height)."""
+    found[n, 0], found[n, 1], found[n, 2], found[n, 3] = y, x, height, level[y, x]
+    found[n, 4] = x * res + hits_at[y, x, 0]
+    found[n, 5] = y * res + hits_at[y, x, 1]
+    found[n, 6] = hit_heights[y, x]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _steeper(above: np.ndarray, i: int, below: np.ndarray, j: int, gradient: float) -> bool:
+    """Whether the mean hits of candidates above[i] and below[j] (`_note`) lie on a slope
+    steeper than `gradient` (dz / dx): a step's face between them, not a ramp."""
+    rise = above[i, 6] - below[j, 6]
+    dx, dy = above[i, 4] - below[j, 4], above[i, 5] - below[j, 5]
+    return rise > 0.0 and rise * rise > gradient * gradient * (dx * dx + dy * dy)

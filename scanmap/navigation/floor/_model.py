@@ -43,9 +43,10 @@ leaves thin levels at in-between heights in the cells it crosses (0, -2, -6, -8 
 an 8 cm step; four in-between levels where a 6 cm step's face crosses the cells at a
 slant), each within a step of the next: a candidate within a step of two candidates on
 either side of it that differ by more than a step and lie within 3.4 cells of each other
-(as far as a ramp at `max_slope` rises 9/10 of a step: `bridged_steps`), joins the floor
-only from a floor cell next to it, and the growth goes no further from it, so the floor
-below the step is not reached through it.
+(as far as a ramp at `max_slope` rises 9/10 of a step: `bridged_steps`; two cells at
+least, and two farther apart than that run only where their mean hits lie on a slope
+steeper than such a ramp's), joins the floor only from a floor cell next to it, and the
+growth goes no further from it, so the floor below the step is not reached through it.
 """
 
 from __future__ import annotations
@@ -90,6 +91,11 @@ RANSAC_CONFIDENCE = 1.0 - 1e-9
 # a ramp (a floor's cells at 0.3 px of laser peak noise: 1.5 deg at the 90th percentile;
 # the cells a step's face crosses, 4-17 deg)
 LEVEL_SLOPE = math.radians(5.0)
+
+
+# the share of a step a ramp at max_slope rises as far as `bridged_steps` looks for a
+# step's two sides, the rest left for the floor's noise (`_ramp_run`)
+RAMP_SHARE = 0.9
 
 
 # how far across (m) a turned step's face leaves levels at in-between heights: up to three
@@ -141,8 +147,8 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # two floors at most, `step_edges`)
     steep = (slope > params.max_slope) | faces_below(layers.levels, cand,
                                                      robot.step_height)  # False for NaN
-    bridges = _bridged_steps(cand, slope <= LEVEL_SLOPE, robot.step_height,
-                             _bridge_reach(robot, params, res)) & ~steep  # a step's face
+    bridges = _bridged_steps(cand, slope <= LEVEL_SLOPE, robot, params, res,
+                             (mean_heights, hits_at)) & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
     gy, gx, cand_points = cell_points(has, level, xs, ys)
@@ -275,26 +281,36 @@ def _rims(levels: np.ndarray, nlev: np.ndarray, edges: np.ndarray, is_floor: np.
     return rim_cells(levels, nlev, edges, is_floor, floor_height, max_step)
 
 
+def _ramp_run(robot: RobotShape, params: FloorConfig, resolution: float) -> float:
+    """How far (cells) a ramp at `max_slope` rises RAMP_SHARE of a step, a tenth left for
+    the floor's noise (0.168 m, 3.4 cells at the defaults)."""
+    return RAMP_SHARE * robot.step_height / max(math.tan(params.max_slope), 1e-9) / resolution
+
+
 def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> float:
-    """How far apart (cells) `bridged_steps` looks for a step's two sides: as far as a
-    ramp at `max_slope` rises nine tenths of a step, a tenth left for the floor's noise
-    (0.17 m, 3.4 cells at the defaults), at least two cells, and no farther than
-    FACE_SPAN: a face's in-between levels lie across a few cells whatever the robot, and
-    farther out a raised ramp's cells lie more than a step above the floor beside it (a
-    robot with a 10 cm step and 10 deg looked 0.51 m across: a third of a 7.7 deg ramp's
-    cells bridges)."""
-    run = 0.9 * robot.step_height / max(math.tan(params.max_slope), 1e-9)
-    return max(min(run, FACE_SPAN) / resolution, 2.0)
+    """How far apart (cells) `bridged_steps` looks for a step's two sides: `_ramp_run`,
+    at least two cells, and no farther than FACE_SPAN: a face's in-between levels lie
+    across a few cells whatever the robot, and farther out a raised ramp's cells lie
+    more than a step above the floor beside it (a robot with a 10 cm step and 10 deg
+    looked 0.51 m across: a third of a 7.7 deg ramp's cells bridges)."""
+    return max(min(_ramp_run(robot, params, resolution), FACE_SPAN / resolution), 2.0)
 
 
-def _bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach: float
-                   ) -> np.ndarray:
-    """`bridged_steps` (`level`: the candidates on level floor), looking only where the
-    candidates in the square of `reach` cells round a cell span more than `max_step` (a
-    bridge needs two that far apart within `reach` of it): on level floor that is few
-    cells, and their search was a twentieth of a segmentation."""
-    varied = morphology.span_filter(heights, 2 * int(reach) + 1) > max_step
-    return bridged_steps(heights, level, max_step, reach, varied)
+def _bridged_steps(heights: np.ndarray, level: np.ndarray, robot: RobotShape,
+                   params: FloorConfig, resolution: float,
+                   hits: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """`bridged_steps` for `robot` (`level`: the candidates on level floor; `hits`: each
+    cell's mean hit height and its x, y offset from the centre, m; None: the centres at
+    `heights`), looking only where the candidates in the square of its reach round a cell
+    span more than a step (a bridge needs two that far apart within reach of it): on
+    level floor that is few cells, and their search was a twentieth of a segmentation."""
+    reach = _bridge_reach(robot, params, resolution)
+    if hits is None:
+        hits = (heights, np.zeros((*heights.shape, 2), np.float32))
+    varied = morphology.span_filter(heights, 2 * int(reach) + 1) > robot.step_height
+    return bridged_steps(heights, level, robot.step_height, reach, varied, hits[0], hits[1],
+                         resolution, _ramp_run(robot, params, resolution),
+                         math.tan(params.max_slope) / RAMP_SHARE)
 
 
 def _taller_than(layers: CellLayers, candidates: np.ndarray, span: float) -> np.ndarray:
