@@ -404,14 +404,28 @@ def test_no_cell_of_a_ramp_within_a_steep_slope_bridges_a_low_step(degrees, dire
     middles = (x * gradient[0] + y * gradient[1]
                + rng.uniform(-0.0025, 0.0025, x.shape)).astype(np.float32)
     level = np.full(x.shape, degrees <= math.degrees(_model.LEVEL_SLOPE))
+    spans = np.abs(np.float32(RES) * (np.abs(gradient[0]) + np.abs(gradient[1])))
     assert not _model._bridged_steps(middles, level, robot, params, RES,
-                                     (hit_heights, offsets)).any()
-    # a 4 cm step, a face cell half way down between its level floors, is one still
+                                     (np.full(x.shape, spans, np.float32), hit_heights,
+                                      offsets)).any()
+
+
+@pytest.mark.parametrize("depth", [0.034, 0.04])
+def test_a_step_just_deeper_than_a_low_step_is_bridged_across_two_cells(depth):
+    # For the same robot a step down 3.4 cm, its face cell half way down between its two
+    # sides, rises 19 deg across them, but its face cell's level spans the step, more
+    # than a ramp's cell: a bridge, floors level or not (by the slope alone the face
+    # joined the floor, which lay within a step of the floor below: at 0.3 px half the
+    # step's drop-off cells unknown)
+    robot, params = RobotShape(step_height=0.03), FloorConfig(max_slope=math.radians(20.0))
     heights = np.zeros((9, 9), np.float32)
-    heights[:, 5:] = -0.04
-    heights[:, 4] = -0.02
-    bridges = _model._bridged_steps(heights, heights != np.float32(-0.02), robot, params, RES)
-    assert bridges[:, 4].all()
+    heights[:, 5:] = -depth
+    heights[:, 4] = -0.5 * depth
+    spans = np.where(heights == heights[0, 4], depth, 0.002).astype(np.float32)
+    hits = (spans, heights, np.zeros((*heights.shape, 2), np.float32))
+    for level in (heights != heights[0, 4], np.zeros(heights.shape, bool)):
+        bridges = _model._bridged_steps(heights, level, robot, params, RES, hits)
+        assert bridges[:, 4].all() and not bridges[:, :3].any() and not bridges[:, 6:].any()
 
 
 def test_a_raised_ramps_cells_are_no_bridges_for_a_robot_with_a_high_step_and_a_low_slope():
@@ -545,10 +559,12 @@ def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(h
     with a few cells a step's face or its far side apart: bridges here and there)."""
     level = heights != np.float32(0.03)  # the face's cells are not level
     everywhere = bridged_steps(heights, level, STEP, REACH_OF_A_STEP,
-                               np.ones(heights.shape, bool), heights,
-                               np.zeros((*heights.shape, 2), np.float32), RES,
+                               np.ones(heights.shape, bool), np.zeros(heights.shape,
+                                                                      np.float32),
+                               heights, np.zeros((*heights.shape, 2), np.float32), RES,
                                _model._ramp_run(RobotShape(), FloorConfig(), RES),
-                               math.tan(MAX_SLOPE) / _model.RAMP_SHARE)
+                               math.tan(MAX_SLOPE) / _model.RAMP_SHARE,
+                               math.tan(MAX_SLOPE) * RES * math.sqrt(2.0))
     assert np.array_equal(_model._bridged_steps(heights, level, *DEFAULT_ROBOT),
                           everywhere)
 

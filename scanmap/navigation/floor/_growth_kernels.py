@@ -427,8 +427,9 @@ def _spans_no_step(heights: np.ndarray, y: int, x: int, far: float, max_step: fl
 
 @njit(cache=True, nogil=True)
 def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach: float,
-                  varied: np.ndarray, hit_heights: np.ndarray, hits_at: np.ndarray,
-                  res: float, run: float, max_gradient: float) -> np.ndarray:
+                  varied: np.ndarray, spans: np.ndarray, hit_heights: np.ndarray,
+                  hits_at: np.ndarray, res: float, run: float, max_gradient: float,
+                  ramp_span: float) -> np.ndarray:
     """Candidates that bridge a step too high for the robot: within `max_step` of two
     candidates that lie more than max_step apart in height, within `reach` cells of each
     other and on either side of it (inside the circle their distance spans) or both on
@@ -440,21 +441,25 @@ def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach
     two sides three cells apart. `reach` (cells) keeps a ramp within the robot's slope
     clear of it (its heights that far apart differ by less than a step) as far as `run`
     (cells: a ramp at the robot's slope rises nine tenths of a step across it). Two
-    sides farther apart (`reach` is two cells at least) count only where the slope
-    between their mean hits (`hit_heights`, where `hits_at` puts them: m from the cells'
-    centres) is steeper than `max_gradient`: a robot with a 3 cm step and 20 deg took
-    every inner cell of a 17.2 deg ramp for a bridge, its cells two apart 3.1 cm apart
-    (ramp room 11203: 250 of its 274 cells not floor; `heights`, the middles of the
-    cells' levels, stray up to a centimetre from the ramp's plane, and a bound on them
-    left 70). A cell level
-    with one side (a ramp's edge beside its face) is no bridge, nor one at a ramp's side
-    beside the floor (the ramp rises along it, the floor lies across), unless both are
-    level: where the laser's lines cross a turned step's face sparsely, the floor above
-    it and the floor below that lie within reach of each other may both lie to one side
-    of a face cell, and two jumps across the gaps beside it joined the two floors (step
-    room 1009, 5.7 cm down, at 0.3 px: its lower floor FREE for six scans). Only cells of
-    `varied` are looked at: any other has no two candidates more than max_step apart
-    round it (`floor._model._bridged_steps`)."""
+    sides farther apart (`reach` is two cells at least) do not count round a cell of a
+    ramp: one whose level `spans` at most `ramp_span` (m: as much as a ramp at the
+    robot's slope rises across a cell's diagonal; a step's face spans the step), where
+    the slope between their mean hits (`hit_heights`, where `hits_at` puts them: m from
+    the cells' centres) is no steeper than `max_gradient`. A robot with a 3 cm step and
+    20 deg took every inner cell of a 17.2 deg ramp for a bridge, its cells two apart
+    3.1 cm apart (ramp room 11203: 250 of its 274 cells not floor; `heights`, the
+    middles of the cells' levels, stray up to a centimetre from the ramp's plane, and a
+    bound on them left 70); a step down 3.4 cm has its sides two cells apart on a 19 deg
+    slope, and by the slope alone its face cells joined the floor, which then lay within
+    a step of the floor below: at 0.3 px of laser peak noise half its drop-off cells
+    UNKNOWN (none FREE). A cell level with one side (a ramp's edge beside its face) is no
+    bridge, nor one at a ramp's side beside the floor (the ramp rises along it, the
+    floor lies across), unless both are level: where the laser's lines cross a turned
+    step's face sparsely, the floor above it and the floor below that lie within reach
+    of each other may both lie to one side of a face cell, and two jumps across the gaps
+    beside it joined the two floors (step room 1009, 5.7 cm down, at 0.3 px: its lower
+    floor FREE for six scans). Only cells of `varied` are looked at: any other has no two
+    candidates more than max_step apart round it (`floor._model._bridged_steps`)."""
     ny, nx = heights.shape
     out = np.zeros((ny, nx), np.bool_)
     margin = 0.1 * max_step
@@ -492,7 +497,7 @@ def bridged_steps(heights: np.ndarray, level: np.ndarray, max_step: float, reach
                     if above[i, 2] - below[j, 2] > max_step and apart2 <= near2 \
                             and (((above[i, 0] - y) * (below[j, 0] - y)
                                   + (above[i, 1] - x) * (below[j, 1] - x) <= 0.0
-                                  and (apart2 <= run2
+                                  and (apart2 <= run2 or spans[y, x] > ramp_span
                                        or _steeper(above, i, below, j, max_gradient)))
                                  or (above[i, 3] > 0.0 and below[j, 3] > 0.0)):
                         out[y, x] = True

@@ -148,7 +148,7 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     steep = (slope > params.max_slope) | faces_below(layers.levels, cand,
                                                      robot.step_height)  # False for NaN
     bridges = _bridged_steps(cand, slope <= LEVEL_SLOPE, robot, params, res,
-                             (mean_heights, hits_at)) & ~steep  # a step's face
+                             (_spans(layers), mean_heights, hits_at)) & ~steep  # a face
     level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
     gy, gx, cand_points = cell_points(has, level, xs, ys)
@@ -298,22 +298,30 @@ def _bridge_reach(robot: RobotShape, params: FloorConfig, resolution: float) -> 
 
 def _bridged_steps(heights: np.ndarray, level: np.ndarray, robot: RobotShape,
                    params: FloorConfig, resolution: float,
-                   hits: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """`bridged_steps` for `robot` (`level`: the candidates on level floor; `hits`: each
-    cell's mean hit height and its x, y offset from the centre, m; None: the centres at
-    `heights`), looking only where the candidates in the square of its reach round a cell
-    span more than a step (a bridge needs two that far apart within reach of it): on
-    level floor that is few cells, and their search was a twentieth of a segmentation."""
+                   hits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                   ) -> np.ndarray:
+    """`bridged_steps` for `robot` (`level`: the candidates on level floor; `hits`: the
+    heights each cell's lowest level spans, its mean hit's height and x, y offset from
+    the centre, m; None: thin levels, their hits at the centres at `heights`), looking
+    only where the candidates in the square of its reach round a cell span more than a
+    step (a bridge needs two that far apart within reach of it): on level floor that is
+    few cells, and their search was a twentieth of a segmentation."""
     reach = _bridge_reach(robot, params, resolution)
     if hits is None:
-        hits = (heights, np.zeros((*heights.shape, 2), np.float32))
+        hits = (np.zeros(heights.shape, np.float32), heights,
+                np.zeros((*heights.shape, 2), np.float32))
     varied = morphology.span_filter(heights, 2 * int(reach) + 1) > robot.step_height
-    return bridged_steps(heights, level, robot.step_height, reach, varied, hits[0], hits[1],
-                         resolution, _ramp_run(robot, params, resolution),
-                         math.tan(params.max_slope) / RAMP_SHARE)
+    gradient = math.tan(params.max_slope)
+    return bridged_steps(heights, level, robot.step_height, reach, varied, *hits, resolution,
+                         _ramp_run(robot, params, resolution), gradient / RAMP_SHARE,
+                         gradient * resolution * math.sqrt(2.0))
 
 
 def _taller_than(layers: CellLayers, candidates: np.ndarray, span: float) -> np.ndarray:
     """Floor candidates whose lowest level spans more than `span` (m)."""
-    return (layers.levels[:, :, 0, gk.HI] - layers.levels[:, :, 0, gk.LO] > span) \
-        & ~np.isnan(candidates)
+    return (_spans(layers) > span) & ~np.isnan(candidates)
+
+
+def _spans(layers: CellLayers) -> np.ndarray:
+    """The heights (m) each cell's lowest level spans."""
+    return layers.levels[:, :, 0, gk.HI] - layers.levels[:, :, 0, gk.LO]
