@@ -45,8 +45,9 @@ slant), each within a step of the next: a candidate within a step of two candida
 either side of it that differ by more than a step and lie within 3.4 cells of each other
 (as far as a ramp at `max_slope` rises 9/10 of a step: `bridged_steps`; two cells at
 least, and two farther apart than that run only where their mean hits lie on a slope
-steeper than such a ramp's), joins the floor only from a floor cell next to it, and the
-growth goes no further from it, so the floor below the step is not reached through it.
+steeper than such a ramp's or the cell's level spans more than a ramp's cell), joins the
+floor only from a floor cell next to it, and the growth goes no further from it, so the
+floor below the step is not reached through it.
 """
 
 from __future__ import annotations
