@@ -558,13 +558,10 @@ def test_the_bridges_searched_where_heights_vary_are_those_searched_everywhere(h
     a step; the kernel asked to look everywhere finds the same cells (on level floor
     with a few cells a step's face or its far side apart: bridges here and there)."""
     level = heights != np.float32(0.03)  # the face's cells are not level
-    everywhere = bridged_steps(heights, level, STEP, REACH_OF_A_STEP,
-                               np.ones(heights.shape, bool), np.zeros(heights.shape,
-                                                                      np.float32),
-                               heights, np.zeros((*heights.shape, 2), np.float32), RES,
-                               _model._ramp_run(RobotShape(), FloorConfig(), RES),
-                               math.tan(MAX_SLOPE) / _model.RAMP_SHARE,
-                               math.tan(MAX_SLOPE) * RES * math.sqrt(2.0))
+    limits = _model._bridge_limits(*DEFAULT_ROBOT)
+    everywhere = bridged_steps(heights, level, STEP, limits[0], np.ones(heights.shape, bool),
+                               np.zeros(heights.shape, np.float32), heights,
+                               np.zeros((*heights.shape, 2), np.float32), RES, *limits[1:])
     assert np.array_equal(_model._bridged_steps(heights, level, *DEFAULT_ROBOT),
                           everywhere)
 

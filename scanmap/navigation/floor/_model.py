@@ -140,16 +140,17 @@ def floor_model(layers: CellLayers, robot: RobotShape, params: FloorConfig,
     # at 0.3 px of laser peak noise, were too thick for their mean hits to count)
     one_surface = res * math.sqrt(2.0) * math.tan(params.max_slope) + 6.0 * params.plane_noise
     mean_heights = mean_hit_heights(layers.levels, layers.nlev, cand, one_surface)
+    spans = layers.levels[:, :, 0, gk.HI] - layers.levels[:, :, 0, gk.LO]  # lowest levels'
     slope, tangents = local_slope(mean_heights, hits_at,
                                   max(round(params.slope_reach / res), 1),
                                   robot.step_height, res, params.plane_noise,
-                                  _taller_than(layers, cand, robot.step_height))
+                                  (spans > robot.step_height) & ~np.isnan(cand))
     # steep, or crossed by a face down a step (no floor of its own: a step's edge between
     # two floors at most, `step_edges`)
     steep = (slope > params.max_slope) | faces_below(layers.levels, cand,
                                                      robot.step_height)  # False for NaN
     bridges = _bridged_steps(cand, slope <= LEVEL_SLOPE, robot, params, res,
-                             (_spans(layers), mean_heights, hits_at)) & ~steep  # a face
+                             (spans, mean_heights, hits_at)) & ~steep  # a step's face
     level = np.where(steep | bridges, np.nan, cand)
     has = ~np.isnan(level)
     gy, gx, cand_points = cell_points(has, level, xs, ys)
@@ -307,22 +308,20 @@ def _bridged_steps(heights: np.ndarray, level: np.ndarray, robot: RobotShape,
     only where the candidates in the square of its reach round a cell span more than a
     step (a bridge needs two that far apart within reach of it): on level floor that is
     few cells, and their search was a twentieth of a segmentation."""
-    reach = _bridge_reach(robot, params, resolution)
     if hits is None:
         hits = (np.zeros(heights.shape, np.float32), heights,
                 np.zeros((*heights.shape, 2), np.float32))
-    varied = morphology.span_filter(heights, 2 * int(reach) + 1) > robot.step_height
+    limits = _bridge_limits(robot, params, resolution)
+    varied = morphology.span_filter(heights, 2 * int(limits[0]) + 1) > robot.step_height
+    return bridged_steps(heights, level, robot.step_height, limits[0], varied, *hits,
+                         resolution, *limits[1:])
+
+
+def _bridge_limits(robot: RobotShape, params: FloorConfig, resolution: float
+                  ) -> tuple[float, float, float, float]:
+    """`bridged_steps`' limits for `robot`: its reach and the ramp's run (cells), the
+    gradient past which two sides farther apart than the run count (max_slope's over
+    RAMP_SHARE) and the most a ramp's cell spans (m: max_slope across its diagonal)."""
     gradient = math.tan(params.max_slope)
-    return bridged_steps(heights, level, robot.step_height, reach, varied, *hits, resolution,
-                         _ramp_run(robot, params, resolution), gradient / RAMP_SHARE,
-                         gradient * resolution * math.sqrt(2.0))
-
-
-def _taller_than(layers: CellLayers, candidates: np.ndarray, span: float) -> np.ndarray:
-    """Floor candidates whose lowest level spans more than `span` (m)."""
-    return (_spans(layers) > span) & ~np.isnan(candidates)
-
-
-def _spans(layers: CellLayers) -> np.ndarray:
-    """The heights (m) each cell's lowest level spans."""
-    return layers.levels[:, :, 0, gk.HI] - layers.levels[:, :, 0, gk.LO]
+    return (_bridge_reach(robot, params, resolution), _ramp_run(robot, params, resolution),
+            gradient / RAMP_SHARE, gradient * resolution * math.sqrt(2.0))
