@@ -26,7 +26,9 @@ of the nearest floor cell within `fill_radius` (not of a step's edge joined to t
 Floor per cell: each candidate's slope is that of the plane, fitted to the candidates'
 mean hits within `slope_reach` of a cell near it, that fits them within the noise and
 explains the cell best (at a crease a window on the cell's own side: the first rows of a
-steep ramp are steep, not half as steep; `_plane_kernels.local_slope`); a cell steeper than
+steep ramp are steep, not half as steep; `_plane_kernels.local_slope`; a cell the crease
+crosses, its mean hit on both sides, takes the ramp's slope where its centre lies past
+the crease, `_plane_kernels._across_crease`); a cell steeper than
 `max_slope` (default 15 deg) does not join the floor: it is never FREE, and an OBSTACLE
 where its surface rises into the robot's band; nor does one whose lowest level reaches
 from a candidate beside it more than a step down (a face the robot cannot climb crosses
@@ -69,6 +71,7 @@ from scanmap.navigation.floor._growth_kernels import (
     touching_floor,
 )
 from scanmap.navigation.floor._plane_kernels import (
+    LEVEL_SLOPE,
     best_plane,
     cell_points,
     faces_below,
@@ -85,13 +88,6 @@ from scanmap.navigation.floor.result import FloorPlane
 # cells of the best plane so far (`ransac_iterations` at most): 16 when that plane holds
 # 90 % of the candidates, 86 at 60 %, all 200 below 46.5 %
 RANSAC_CONFIDENCE = 1.0 - 1e-9
-
-
-# A floor candidate this gentle (`local_slope`) lies on level floor, for
-# `bridged_steps`: two level floors more than a step apart are a step's two sides, not
-# a ramp (a floor's cells at 0.3 px of laser peak noise: 1.5 deg at the 90th percentile;
-# the cells a step's face crosses, 4-17 deg)
-LEVEL_SLOPE = math.radians(5.0)
 
 
 # the share of a step a ramp at max_slope rises as far as `bridged_steps` looks for a

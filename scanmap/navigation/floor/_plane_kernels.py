@@ -299,7 +299,10 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
     14.6 deg ramp's side cells came out at 15-19 deg, not floor), the one over the cells
     at or above it does not; the floor's growth keeps off a step's lower side by itself
     (`grow_region`). At a ramp's foot the whole window's plane is the gentler (half a
-    window's plane, at 0.3 px of noise, overshot gentle ramps). Where no window holds it,
+    window's plane, at 0.3 px of noise, overshot gentle ramps), and a cell whose centre
+    lies past the crease takes the slope of the surface beyond it (`_across_crease`,
+    from the cells off the best window's plane: the cell's own mean hit, on both
+    surfaces, cannot tell its side). Where no window holds it,
     the slope is the steepest of the planes fitted at the centres to the cell's own
     window, to those at or above the cell's height and to those at or below it (taken
     everywhere, the steepest of three noisy fits overshot a 14 deg ramp by 1-2.6 deg, and
@@ -361,7 +364,7 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
             tangent[y, x, 0] = hc
             tangent[y, x, 1] = x * res + offsets[y, x, 0]
             tangent[y, x, 2] = y * res + offsets[y, x, 1]
-            best, slope, fits = np.inf, -np.inf, 0
+            best, slope, fits, best_y, best_x = np.inf, -np.inf, 0, y, x
             for yy in range(y - radius, y + radius + 1, radius):
                 for xx in range(x - radius, x + radius + 1, radius):
                     if not (0 <= yy < ny and 0 <= xx < nx):
@@ -378,7 +381,7 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                         slopes_x[fits], slopes_y[fits] = gx, gy
                         slope_variances[fits] = plane[yy, xx, 3]
                         if score < best:
-                            best, chosen = score, fits
+                            best, chosen, best_y, best_x = score, fits, yy, xx
                         fits += 1
             agreeing = 0
             if best < np.inf:  # the best window agrees with itself: weight > 0
@@ -395,7 +398,9 @@ def local_slope(heights: np.ndarray, offsets: np.ndarray, radius: int, max_step:
                 slope = math.atan(math.hypot(sx / weight, sy / weight))
             if best == np.inf or np.isnan(variances[y, x]):  # its own window fits none
                 gentler, steepest = _fits_at_centres(heights, radius, max_step, res, y, x)
-                slope = steepest if best == np.inf else max(slope, gentler)
+                slope = steepest if best == np.inf else max(
+                    slope, gentler, _across_crease(heights, offsets, plane, radius, max_step,
+                                                   res, tolerance, y, x, best_y, best_x))
             elif agreeing >= 2:
                 tangent[y, x, 3], tangent[y, x, 4] = sx / weight, sy / weight
             if slope > -np.inf:  # a fit on either side or over both
@@ -433,6 +438,63 @@ def _fits_at_centres(heights: np.ndarray, radius: int, max_step: float, res: flo
                                       _plane_slope(_sum(every, above, -1.0), res))
 
 
+@njit(cache=True, nogil=True)
+def _across_crease(heights: np.ndarray, offsets: np.ndarray, plane: np.ndarray, radius: int,
+                   max_step: float, res: float, tolerance: float, y: int, x: int,
+                   best_y: int, best_x: int) -> float:
+    """The slope of the ramp rising across a crease from the level floor a cell's best
+    window lies on (`local_slope`'s, centred on best_y, best_x), where the cell's centre
+    lies past that crease; -inf elsewhere. At a steep ramp's foot the cell's mean hit
+    lies on both surfaces, a few mm up, and the floor's window explains it about as well
+    as the ramp's: the foot cells of a 25 deg ramp were fitted 10-14 deg (random room
+    11106 at 0.3 px: 14 cells FREE). The ramp is the candidates of the cell's window
+    more than `tolerance` above the floor's plane, where they fit a plane within
+    `tolerance` (RMS) that holds the cell's mean hit within it too and passes above the
+    floor's at the cell's centre (a valley's surface is the higher of its two planes);
+    its slope so taken is its gradient less two standard deviations, no steeper than its
+    noise allows (a gentle ramp's foot stays gentle). The ramp's cells lie uphill of the
+    cell, their centroid within 45 deg of its gradient (UPHILL), not beside it: past the
+    side of a 27 deg ramp, its plane carried on sideways passed above the floor there
+    (random room 1: a floor cell 7 cm beside it 17 deg). Level floor only (LEVEL_SLOPE),
+    rising only: the side cells of a ramp (7.7 deg, random room 1; 3.5 deg, mixed room
+    12004) claimed by the floor a few cm below them with the cells the side's face
+    crosses at in-between heights, a plane that fits them, came out at 15-17 deg."""
+    ny, nx = heights.shape
+    hc = heights[y, x]
+    gx, gy = plane[best_y, best_x, 0], plane[best_y, best_x, 1]
+    if math.hypot(gx, gy) > math.tan(LEVEL_SLOPE):
+        return -np.inf
+    # the floor plane's height at the cell's centre, above hc
+    base = heights[best_y, best_x] + plane[best_y, best_x, 2] - hc \
+        + gx * ((x - best_x) * res - offsets[best_y, best_x, 0]) \
+        + gy * ((y - best_y) * res - offsets[best_y, best_x, 1])
+    ramp, szz = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), 0.0
+    reach = 2 * radius
+    for yy in range(max(y - reach, 0), min(y + reach + 1, ny)):
+        for xx in range(max(x - reach, 0), min(x + reach + 1, nx)):
+            dz = heights[yy, xx] - hc
+            px, py = (xx - x) * res + offsets[yy, xx, 0], (yy - y) * res + offsets[yy, xx, 1]
+            if dz <= max_step and dz - base - gx * px - gy * py > tolerance:  # False for NaN
+                ramp = _with_cell(ramp, px, py, dz, 1.0)
+                szz += dz * dz
+    n = ramp[0]
+    if n < 6:  # too few for `_gradient`, which divides by n first
+        return -np.inf
+    rx, ry = _gradient(ramp, res)
+    if np.isnan(rx):
+        return -np.inf
+    rms = _plane_rms(ramp, szz, rx, ry)
+    centre = (ramp[3] - rx * ramp[1] - ry * ramp[2]) / n  # its plane at the cell's centre
+    ahead = (ramp[1] * rx + ramp[2] * ry) / n  # its cells' centroid along its gradient
+    if rms > tolerance or centre <= base or ahead * ahead < UPHILL * (
+            ramp[1] * ramp[1] + ramp[2] * ramp[2]) / (n * n) * (rx * rx + ry * ry) \
+            or ahead <= 0.0 \
+            or abs(centre + rx * offsets[y, x, 0] + ry * offsets[y, x, 1]) > tolerance:
+        return -np.inf
+    spread = math.sqrt(rms * rms * n / (n - 3.0) / _least_spread(ramp))
+    return math.atan(max(math.hypot(rx, ry) - 2.0 * spread, 0.0))
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _with_cell(s: tuple, px: float, py: float, dz: float, weight: float) -> tuple:
     """Plane-fit sums `s` (n, sx, sy, sz, sxx, sxy, syy, sxz, syz: offsets x, y in m from
@@ -452,6 +514,19 @@ def _sum(a: tuple, b: tuple, sign: float) -> tuple:
 
 
 AGREE = 9.0  # `local_slope`: gradients agree within 3 standard deviations (squared)
+
+
+# `_across_crease`: a ramp's cells lie uphill of a cell when their centroid lies within
+# 45 deg of its gradient (the cosine's square)
+UPHILL = 0.5
+
+
+# A floor candidate this gentle (`local_slope`) lies on level floor, for
+# `bridged_steps`: two level floors more than a step apart are a step's two sides, not
+# a ramp (a floor's cells at 0.3 px of laser peak noise: 1.5 deg at the 90th percentile;
+# the cells a step's face crosses, 4-17 deg); and for `_across_crease`, the one side of
+# a crease a cell's best window lies on
+LEVEL_SLOPE = math.radians(5.0)
 
 
 PLANE_SPREAD = 0.2  # cells: the least RMS spread of a plane fit's points across their line
