@@ -447,10 +447,12 @@ def _across_crease(heights: np.ndarray, offsets: np.ndarray, plane: np.ndarray, 
     lies past that crease; -inf elsewhere. At a steep ramp's foot the cell's mean hit
     lies on both surfaces, a few mm up, and the floor's window explains it about as well
     as the ramp's: the foot cells of a 25 deg ramp were fitted 10-14 deg (random room
-    11106 at 0.3 px: 14 cells FREE). The ramp is the candidates of the cell's window
-    more than `tolerance` above the floor's plane, where they fit a plane within
-    `tolerance` (RMS) that holds the cell's mean hit within it too and passes above the
-    floor's at the cell's centre (a valley's surface is the higher of its two planes);
+    11106 at 0.3 px: 14 cells FREE). The ramp is the candidates within twice `radius`
+    (beyond a platform's rim its top's cells lie flat) more than `tolerance` above the
+    floor's plane, where they fit a plane within `tolerance` (RMS; fitted once more
+    without the cells more than twice its RMS off it, a ramp's side face's, beside it)
+    that holds the cell's mean hit within it too and passes above the floor's at the
+    cell's centre (a valley's surface is the higher of its two planes);
     its slope so taken is its gradient less two standard deviations, no steeper than its
     noise allows (a gentle ramp's foot stays gentle). The ramp's cells lie uphill of the
     cell, their centroid within 45 deg of its gradient (UPHILL), not beside it: past the
@@ -459,7 +461,6 @@ def _across_crease(heights: np.ndarray, offsets: np.ndarray, plane: np.ndarray, 
     rising only: the side cells of a ramp (7.7 deg, random room 1; 3.5 deg, mixed room
     12004) claimed by the floor a few cm below them with the cells the side's face
     crosses at in-between heights, a plane that fits them, came out at 15-17 deg."""
-    ny, nx = heights.shape
     hc = heights[y, x]
     gx, gy = plane[best_y, best_x, 0], plane[best_y, best_x, 1]
     if math.hypot(gx, gy) > math.tan(LEVEL_SLOPE):
@@ -468,31 +469,60 @@ def _across_crease(heights: np.ndarray, offsets: np.ndarray, plane: np.ndarray, 
     base = heights[best_y, best_x] + plane[best_y, best_x, 2] - hc \
         + gx * ((x - best_x) * res - offsets[best_y, best_x, 0]) \
         + gy * ((y - best_y) * res - offsets[best_y, best_x, 1])
-    ramp, szz = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), 0.0
-    reach = 2 * radius
-    for yy in range(max(y - reach, 0), min(y + reach + 1, ny)):
-        for xx in range(max(x - reach, 0), min(x + reach + 1, nx)):
-            dz = heights[yy, xx] - hc
-            px, py = (xx - x) * res + offsets[yy, xx, 0], (yy - y) * res + offsets[yy, xx, 1]
-            if dz <= max_step and dz - base - gx * px - gy * py > tolerance:  # False for NaN
-                ramp = _with_cell(ramp, px, py, dz, 1.0)
-                szz += dz * dz
+    floor = (gx, gy, base)
+    ramp, szz = _above_floor(heights, offsets, y, x, 2 * radius, max_step, res, tolerance,
+                             floor, (0.0, 0.0, 0.0), np.inf)
+    rx, ry, rms, centre = _ramp_fit(ramp, szz, res)
+    if rms > tolerance:  # once more without the cells off it: a side face's, beside it
+        ramp, szz = _above_floor(heights, offsets, y, x, 2 * radius, max_step, res,
+                                 tolerance, floor, (rx, ry, centre), 2.0 * rms)
+        rx, ry, rms, centre = _ramp_fit(ramp, szz, res)
+    if not rms <= tolerance or centre <= base:  # (True for NaN: no plane)
+        return -np.inf
     n = ramp[0]
-    if n < 6:  # too few for `_gradient`, which divides by n first
-        return -np.inf
-    rx, ry = _gradient(ramp, res)
-    if np.isnan(rx):
-        return -np.inf
-    rms = _plane_rms(ramp, szz, rx, ry)
-    centre = (ramp[3] - rx * ramp[1] - ry * ramp[2]) / n  # its plane at the cell's centre
     ahead = (ramp[1] * rx + ramp[2] * ry) / n  # its cells' centroid along its gradient
-    if rms > tolerance or centre <= base or ahead * ahead < UPHILL * (
-            ramp[1] * ramp[1] + ramp[2] * ramp[2]) / (n * n) * (rx * rx + ry * ry) \
-            or ahead <= 0.0 \
+    if ahead <= 0.0 or ahead * ahead < UPHILL * (ramp[1] * ramp[1] + ramp[2] * ramp[2]) \
+            / (n * n) * (rx * rx + ry * ry) \
             or abs(centre + rx * offsets[y, x, 0] + ry * offsets[y, x, 1]) > tolerance:
         return -np.inf
     spread = math.sqrt(rms * rms * n / (n - 3.0) / _least_spread(ramp))
     return math.atan(max(math.hypot(rx, ry) - 2.0 * spread, 0.0))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _ramp_fit(sums: tuple, szz: float, res: float) -> tuple[float, float, float, float]:
+    """`_across_crease`'s plane fitted to the cells summed in `sums` (`_with_cell`;
+    `szz`: their squared heights): its gradient (dz/dx, dz/dy), RMS residual and height
+    at the cell's centre; NaN with too few cells or too narrow a spread (`_gradient`)."""
+    n = sums[0]
+    if n < 6:  # `_gradient` divides by n first
+        return np.nan, np.nan, np.nan, np.nan
+    gx, gy = _gradient(sums, res)
+    if np.isnan(gx):
+        return np.nan, np.nan, np.nan, np.nan
+    return gx, gy, _plane_rms(sums, szz, gx, gy), (sums[3] - gx * sums[1] - gy * sums[2]) / n
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _above_floor(heights: np.ndarray, offsets: np.ndarray, y: int, x: int, reach: int,
+                 max_step: float, res: float, tolerance: float, floor: tuple,
+                 ramp: tuple, within: float) -> tuple[tuple, float]:
+    """`_across_crease`'s plane-fit sums (`_with_cell`) and squared heights of the
+    candidates within `reach` cells and `max_step` above cell (y, x) that lie more than
+    `tolerance` above the floor's plane and within `within` of the ramp's (each
+    (gx, gy, height at the cell's centre above its own))."""
+    ny, nx = heights.shape
+    hc = heights[y, x]
+    sums, szz = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), 0.0
+    for yy in range(max(y - reach, 0), min(y + reach + 1, ny)):
+        for xx in range(max(x - reach, 0), min(x + reach + 1, nx)):
+            dz = heights[yy, xx] - hc
+            px, py = (xx - x) * res + offsets[yy, xx, 0], (yy - y) * res + offsets[yy, xx, 1]
+            if dz <= max_step and dz - floor[2] - floor[0] * px - floor[1] * py > tolerance \
+                    and abs(dz - ramp[2] - ramp[0] * px - ramp[1] * py) <= within:
+                sums = _with_cell(sums, px, py, dz, 1.0)  # (False for NaN)
+                szz += dz * dz
+    return sums, szz
 
 
 @njit(cache=True, nogil=True, inline="always")
