@@ -107,6 +107,8 @@ class ScanSource:
         workers = usable_cpus() if workers is None else workers
         if (path / INDEX_NAME).is_file():
             recording = Recording.open(path)
+            if not recording.scans:  # stopped before its first turn: an IndexError later
+                raise RecordingError(f"{path / INDEX_NAME}: lists no scans, nothing to map")
             return cls(path, "recording", model or recording.model, len(recording.scans),
                        recording, [], workers)
         files = sorted(path.glob("scan_*.npz")) if path.is_dir() else []

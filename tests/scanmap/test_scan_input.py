@@ -74,6 +74,14 @@ def test_input_that_is_neither_is_a_clear_error(tmp_path):
         ScanSource.open(tmp_path / "missing")
 
 
+def test_a_recording_without_a_scan_is_a_clear_error(office_recording, tmp_path):
+    """A recording stopped before its first turn lists no scans: said so, naming its
+    index, not an IndexError where the report scores the empty trajectory."""
+    RecordingWriter(tmp_path, Recording.open(office_recording).model, source="test")
+    with pytest.raises(RecordingError, match=r"recording\.json: lists no scans"):
+        ScanSource.open(tmp_path)
+
+
 def test_a_scan_with_an_unreadable_encoder_comes_empty_with_the_reason(office_recording,
                                                                        tmp_path):
     model = Recording.open(office_recording).model
