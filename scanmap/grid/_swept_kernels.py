@@ -35,9 +35,9 @@ from scanmap.grid.unlit import project_to_image
 
 # Fields of the optics vector (`swept.SweptFrames.optics`).
 (O_CAMERA, O_TO_CAMERA, O_INTRINSICS, O_DIST, O_LASER, O_MIN_RANGE, O_REACH, O_WIDTH,
- O_HEIGHT, O_TOLERANCE, O_ABOVE, O_NEAR_Z, O_OUTSHINE, O_BLOCK_Z, O_MISSES, O_DARK_REACH) = (
-    0, 3, 12, 16, 21, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37)
-N_OPTICS = 38
+ O_HEIGHT, O_TOLERANCE, O_ABOVE, O_NEAR_Z, O_OUTSHINE, O_BLOCK_Z, O_MISSES, O_DARK_REACH,
+ O_DARK_MISSES) = (0, 3, 12, 16, 21, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38)
+N_OPTICS = 39
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -96,14 +96,16 @@ def _blocked(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, qx, qy, qz, f
 @njit(cache=True, nogil=True, _nrt=False)
 def _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, to_head, cameras,
                   emitters, nearest, optics, fp, shift, levels, scan, static_scans) -> int:
-    """How many of the scan's frames swept point p (map) with the laser plane, in view,
-    unshadowed and unhidden, without their image column returning anything as near (nor
-    anything at all, farther than optics' dark reach)."""
+    """The misses owed by the scan's frames that swept point p (map) with the laser plane,
+    in view, unshadowed and unhidden, without their image column returning anything as
+    near: O_MISSES a frame, O_DARK_MISSES where the column and those beside it returned
+    nothing at all and p lies farther than optics' dark reach (the stripe may have faded
+    there)."""
     lx, ly, lz = optics[O_LASER], optics[O_LASER + 1], optics[O_LASER + 2]
     nx, ny, nz = optics[O_LASER + 3], optics[O_LASER + 4], optics[O_LASER + 5]
     cx, cy, cz = optics[O_CAMERA], optics[O_CAMERA + 1], optics[O_CAMERA + 2]
     width = nearest.shape[1]
-    count = 0
+    misses = 0
     for f in range(to_head.shape[0]):
         m = to_head[f]
         hx = m[0, 0] * px + m[0, 1] * py + m[0, 2] * pz + m[0, 3]
@@ -126,7 +128,7 @@ def _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, to_head,
         for w in range(max(column - 1, 0), min(column + 2, width)):
             outshone |= nearest[f, w] <= distance + optics[O_OUTSHINE]
             dark &= not nearest[f, w] < np.inf
-        if outshone or (dark and reach > optics[O_DARK_REACH]):
+        if outshone:
             continue
         margin = optics[O_BLOCK_Z]
         if _blocked(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, cameras[f, 0],
@@ -136,8 +138,9 @@ def _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz, to_head,
                             emitters[f, 0], emitters[f, 1], emitters[f, 2], fp, shift,
                             levels, scan, static_scans, margin):
             continue
-        count += 1
-    return count
+        faded = dark and reach > optics[O_DARK_REACH]
+        misses += int(optics[O_DARK_MISSES] if faded else optics[O_MISSES])
+    return misses
 
 
 @njit(cache=True, nogil=True, _nrt=False)
@@ -146,7 +149,7 @@ def miss_swept_levels(to_head, cameras, emitters, nearest, optics, box, tile_ind
     """Miss the levels in the cells of box (x0, y0, x1, y1, map) that the scan's frames
     swept unlit (`swept`): not static nor beside a static level at their heights (a
     face's rim or end, `_beside_seen_in`), not hit by this scan in or beside their cell,
-    mean hit above optics' `above`; O_MISSES misses per such frame, within the grid's
+    mean hit above optics' `above`; the misses `_unlit_sweeps` counts, within the grid's
     `max_misses` a scan. Returns the levels removed."""
     res, x0, y0 = fp[FP_RES], fp[FP_X0], fp[FP_Y0]
     shift, levels, max_miss = ip[IP_SHIFT], ip[IP_LEVELS], ip[IP_MAXMISS]
@@ -176,12 +179,12 @@ def miss_swept_levels(to_head, cameras, emitters, nearest, optics, box, tile_ind
                     continue
                 px = x0 + (ix + 0.5) * res + lev_f[li, MX]
                 py = y0 + (iy + 0.5) * res + lev_f[li, MY]
-                sweeps = _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz,
+                misses = _unlit_sweeps(lev_f, lev_n, lev_flag, nlev, tile_index, px, py, pz,
                                        to_head, cameras, emitters, nearest, optics, fp, shift,
                                        levels, scan, static_scans)
-                if sweeps:
+                if misses:
                     _touch(lev_n, lev_flag, li, scan)
-                for _ in range(sweeps * int(optics[O_MISSES])):
+                for _ in range(misses):
                     if _miss(lev_f, lev_n, lev_flag, nlev, off, k - 1, fp, levels, max_miss):
                         removed += 1
                         k -= 1  # the next level moved into this one's place

@@ -15,10 +15,6 @@ nothing is there, unless:
 - the level's image line returned a point no farther from the camera than the level
   (plus OUTSHINE_MARGIN): one peak is kept per line, the strongest, so a nearer surface
   lit on the same line hides it (a person in front of a wall);
-- the line and the two beside it returned nothing at all, and the level lies farther
-  than DARK_REACH: the stripe fades with range, and a line may show nothing although a
-  surface was lit (a wall above a cabinet 2.1 m off, seen in one scan and lost on the
-  next's dark lines: 9 wall cell-scans of the rendered `people` eroded so);
 - a level this scan hit, or a static one, lies on the camera's or the emitter's line to
   it (outside the 3 x 3 cells round it): hidden or in shadow;
 - this scan hit the level, or a level beside it at its height (NEAR_Z): a face on a
@@ -29,14 +25,22 @@ nothing is there, unless:
   in people room 17 before), or its mean hit lies below ABOVE (the floor, which the
   laser's lines hit only where they fall, and feet merged with it).
 
-Each such frame costs the level MISSES misses, within the grid's `max_misses` a scan.
-The stripe fades with range: on the rendered frames the floor returns on 96-98 % of the
-lines out to 1.75 m (DARK_REACH), at most 85 % beyond; farther than REACH the plane's
-lines lie far apart too. On `people` (`python -m
-benchmarks.bench_hazards`) the ghost cell-scans went 1124 -> 770 of 42,922, through its
-rendered frames 817 -> 545 (`--rendered-people`), the walls unchanged; see
-docs/hazards.md. The frames are not kept with a scan for loop-closure
-rebuilds (`scanmap.mapping.rebuild`): a rebuilt grid holds what the rays alone leave.
+Each such frame costs the level MISSES misses, within the grid's `max_misses` a scan;
+DARK_MISSES (half as many) where its line and the two beside it returned nothing at all
+and the level lies farther than DARK_REACH. The stripe fades with range: on the rendered
+frames the floor returns on 96-98 % of the lines out to 1.75 m (DARK_REACH), at most
+85 % beyond, so there a dark line may hide a lit surface. At two misses such a frame
+took a wall above a cabinet 2.1 m off, seen in one scan, on the next's dark lines (9
+wall cell-scans of the rendered `people` eroded); counted not at all, it left most of
+a person seen in one scan 1.5-2.5 m off, whose body no camera ray crosses. At one miss
+a level seen in one scan (log-odds 0.85) is still an obstacle after one dark frame
+(0.45, `FloorConfig.min_logodds` 0.2) and goes after two. Farther than REACH the
+plane's lines lie far apart too. On `people` (`python -m
+benchmarks.bench_hazards`) the ghost cell-scans went 1124 -> 770 of 42,922 (764 -> 500
+with the dark frames at one miss), through its rendered frames 817 -> 545
+(`--rendered-people`; 573 -> 450), the walls unchanged; see docs/hazards.md. The frames
+are not kept with a scan for loop-closure rebuilds (`scanmap.mapping.rebuild`): a
+rebuilt grid holds what the rays alone leave.
 """
 
 from __future__ import annotations
@@ -53,12 +57,13 @@ from scanmap_driver.transforms import invert_pose
 
 SWEEP_TOLERANCE = 0.025  # m: half a cell; the plane this near a level's mean hit lights it
 REACH = 3.0  # m from the head's axis (see the module)
-DARK_REACH = 1.75  # m: farther, a line without any return proves nothing (a faded stripe)
+DARK_REACH = 1.75  # m: farther, a line without any return may be a faded stripe
 ABOVE = 0.1  # m, map z: lower mean hits are the floor's, or a foot's merged with it
 NEAR_Z = 0.05  # m: a hit this near a level's height in or beside its cell keeps it
 OUTSHINE_MARGIN = 0.1  # m: a return this little farther may still have outshone it
 BLOCK_Z = 0.02  # m: a level this near a sight line's heights blocks it
 MISSES = 2  # per frame that swept a level unlit
+DARK_MISSES = 1  # per such frame whose line and those beside it, past DARK_REACH, were dark
 
 
 @dataclass(frozen=True)
@@ -102,9 +107,11 @@ def swept_frames(scan: Scan, model: ScannerModel, pose: np.ndarray | None = None
     optics[sk.O_DIST:sk.O_DIST + 5] = cam.dist_coeffs
     optics[sk.O_LASER:sk.O_LASER + 6] = (*model.laser.origin, *model.laser.normal)
     optics[[sk.O_MIN_RANGE, sk.O_REACH, sk.O_WIDTH, sk.O_HEIGHT, sk.O_TOLERANCE, sk.O_ABOVE,
-            sk.O_NEAR_Z, sk.O_OUTSHINE, sk.O_BLOCK_Z, sk.O_MISSES, sk.O_DARK_REACH]] = (
+            sk.O_NEAR_Z, sk.O_OUTSHINE, sk.O_BLOCK_Z, sk.O_MISSES, sk.O_DARK_REACH,
+            sk.O_DARK_MISSES]] = (
         model.min_range, min(REACH, model.max_range), cam.width, cam.height,
-        SWEEP_TOLERANCE, ABOVE, NEAR_Z, OUTSHINE_MARGIN, BLOCK_Z, MISSES, DARK_REACH)
+        SWEEP_TOLERANCE, ABOVE, NEAR_Z, OUTSHINE_MARGIN, BLOCK_Z, MISSES, DARK_REACH,
+        DARK_MISSES)
     box = np.zeros(4)
     if len(heads):
         box = np.concatenate([heads[:, :2, 3].min(axis=0) - REACH,

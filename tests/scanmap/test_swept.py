@@ -18,6 +18,7 @@ from scanmap.grid.rays import laser_origins, scan_rays
 from scanmap.grid.swept import (
     ABOVE,
     BLOCK_Z,
+    DARK_MISSES,
     DARK_REACH,
     MISSES,
     NEAR_Z,
@@ -78,16 +79,22 @@ def mapped(scene: Scene, swept: bool, nearest: float | None = None,
     return out
 
 
-def raised_levels(grid: HeightGrid, x: float, y: float, radius: float) -> int:
-    """Levels whose mean hit lies above ABOVE in the cells whose centres lie within
-    `radius` of (x, y)."""
+def raised_logodds(grid: HeightGrid, x: float, y: float, radius: float) -> np.ndarray:
+    """The log-odds of the levels whose mean hit lies above ABOVE in the cells whose
+    centres lie within `radius` of (x, y)."""
     layers = grid.layers((x - radius, y - radius, x + radius, y + radius))
     ny, nx = layers.nlev.shape
     cx = layers.origin[0] + (np.arange(nx) + 0.5) * layers.resolution
     cy = layers.origin[1] + (np.arange(ny) + 0.5) * layers.resolution
     inside = np.hypot(*np.meshgrid(cx - x, cy - y)) <= radius
     used = np.arange(layers.levels.shape[2]) < layers.nlev[..., None]
-    return int((used & (layers.levels[..., gk.MZ] > ABOVE) & inside[..., None]).sum())
+    return layers.levels[..., gk.LOGODDS][used & (layers.levels[..., gk.MZ] > ABOVE)
+                                          & inside[..., None]]
+
+
+def raised_levels(grid: HeightGrid, x: float, y: float, radius: float) -> int:
+    """How many levels `raised_logodds` finds."""
+    return len(raised_logodds(grid, x, y, radius))
 
 
 @pytest.fixture(scope="module")
@@ -129,15 +136,19 @@ def test_a_line_that_returned_something_nearer_proves_nothing():
     np.testing.assert_array_equal(a.levels, b.levels)
 
 
-def test_a_line_without_any_return_proves_nothing_beyond_dark_reach():
+def test_a_line_without_any_return_weighs_less_beyond_dark_reach():
     """The stripe fades with range: with every line dark, a person 2.3 m off who left
-    keeps their levels as without the swept frames; one 1.2 m off loses them."""
-    for x, kept in ((2.3, True), (1.2, False)):
+    loses less of their levels' log-odds than with every line returning a point far
+    beyond them, yet more than without the swept frames; one 1.2 m off loses as much
+    either way."""
+    for x, faded in ((2.3, True), (1.2, False)):
         scene = corridor(person(x, 0.35, until=GONE))
-        dark, plain = mapped(scene, True, nearest=np.inf)[-1], mapped(scene, False)[-1]
-        counts = raised_levels(dark, x, 0.35, 0.25), raised_levels(plain, x, 0.35, 0.25)
-        assert counts[1] > 10
-        assert (counts[0] == counts[1]) if kept else (counts[0] < 0.5 * counts[1])
+        plain, dark, lit = (raised_logodds(mapped(scene, swept, nearest)[-1], x, 0.35,
+                                           0.25).sum()
+                            for swept, nearest in ((False, None), (True, np.inf),
+                                                   (True, 50.0)))
+        assert plain > 10.0
+        assert (lit < dark < plain) if faded else (dark == lit and dark < 0.5 * plain)
 
 
 def test_far_from_the_origin_the_same_levels_are_missed():
@@ -261,8 +272,9 @@ def _blocked_reference(grid: HeightGrid, p: np.ndarray, q: np.ndarray, scan: int
 
 
 def _sweeps_reference(grid: HeightGrid, frames, p: np.ndarray, scan: int) -> int:
-    """`_swept_kernels._unlit_sweeps` in numpy: the frames that swept p unlit."""
-    count = 0
+    """`_swept_kernels._unlit_sweeps` in numpy: the misses owed by the frames that swept
+    p unlit."""
+    misses = 0
     origin, normal = np.array(MODEL.laser.origin), np.array(MODEL.laser.normal)
     camera = np.array(MODEL.camera_mount.position)
     for f in range(len(frames.to_head)):
@@ -275,14 +287,14 @@ def _sweeps_reference(grid: HeightGrid, frames, p: np.ndarray, scan: int) -> int
             continue
         line = int(np.rint(u))
         beside = frames.nearest[f, max(line - 1, 0):line + 2]
-        if (beside <= np.linalg.norm(head - camera) + OUTSHINE_MARGIN).any() \
-                or (np.isinf(beside).all() and np.hypot(head[0], head[1]) > DARK_REACH):
+        if (beside <= np.linalg.norm(head - camera) + OUTSHINE_MARGIN).any():
             continue
         if _blocked_reference(grid, p, frames.cameras[f], scan) \
                 or _blocked_reference(grid, p, frames.emitters[f], scan):
             continue
-        count += 1
-    return count
+        faded = np.isinf(beside).all() and np.hypot(head[0], head[1]) > DARK_REACH
+        misses += DARK_MISSES if faded else MISSES
+    return misses
 
 
 def test_the_kernel_misses_what_the_plain_reference_does(left):
@@ -313,10 +325,10 @@ def test_the_kernel_misses_what_the_plain_reference_does(left):
                     continue
                 p = np.array([c.corner + (ix + 0.5) * c.resolution + lev_f[li, gk.MX],
                               c.corner + (iy + 0.5) * c.resolution + lev_f[li, gk.MY], z])
-                sweeps = _sweeps_reference(grid, frames, p, scan)
-                swept_any += sweeps > 0
+                owed = _sweeps_reference(grid, frames, p, scan)
+                swept_any += owed > 0
                 used = lev_flag[li] & 0x7F if lev_n[li, gk.STAMP] == scan else 0
-                misses = min(MISSES * sweeps, max(c.max_misses - int(used), 0))
+                misses = min(owed, max(c.max_misses - int(used), 0))
                 expected[(ix, iy, round(float(z), 6))] = lev_f[li, gk.LOGODDS] \
                     - misses * np.float32(c.l_miss)
     assert swept_any > 5
