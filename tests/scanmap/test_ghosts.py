@@ -112,19 +112,19 @@ def test_walls_seen_through_sixty_scans_with_people_never_erode(corridor):
 
 def test_most_cells_people_left_are_not_obstacles_three_scans_later(corridor):
     """The share of cells the people left (within 2 m of the robot, summed over the scans)
-    still OBSTACLE three scans later: 8.2 % before issue 17's fixes, 4.6 % after, 3.9 %
-    once cells a person's side grazes are not counted as left; what stays is mostly
-    heights no later ray crossed (the robot's blind disc) and the feet merged with the
-    floor (bench_hazards); 3.3 % since one look through removes what one scan hit
-    (GridConfig.see_through), 2.6 % (1124 of 42922, from 1445) since the laser's rays
-    clear too, 1.8 % (770) since the levels the laser's plane swept unlit are missed
-    (`scanmap.grid.swept`: bodies 0.5-0.8 m up that no ray crosses), 1.2 % (500, from
-    764) since a frame whose line past 1.75 m returned nothing costs one miss. Of the cells the
+    still OBSTACLE three scans later: 8.2 % before issue 17's fixes, 4.6 % after, 3.9 % once
+    cells a person's side grazes are not counted as left; what stays is mostly heights no
+    later ray crossed (the robot's blind disc) and the feet merged with the floor
+    (bench_hazards); 3.3 % since one look through removes what one scan hit
+    (GridConfig.see_through), 2.6 % (1124 of 42922, from 1445) since the laser's rays clear
+    too, 1.8 % (770) since the levels the laser's plane swept unlit are missed
+    (`scanmap.grid.swept`: bodies 0.5-0.8 m up that no ray crosses), 1.2 % (500, from 764)
+    since a frame whose line past 1.75 m returned nothing costs one miss. Of the cells the
     later camera rays saw through, at every height the map holds something, 65 of 14675
-    (0.44 %) stayed, 38 (0.26 %) since, 24 (0.16 %) with the laser's rays, 9 (0.06 %)
-    with the swept frames; tracing every ray to its origin (GridConfig.bundle_run 0) had
-    left 11, at four times the fusion time. Counting the cells the laser's rays crossed
-    too, 217 of 21606 (1.0 %), 106 (0.49 %) with the swept frames."""
+    (0.44 %) stayed, 38 (0.26 %) since, 24 (0.16 %) with the laser's rays, 9 (0.06 %) with
+    the swept frames; tracing every ray to its origin (GridConfig.bundle_run 0) had left 11,
+    at four times the fusion time. Counting the cells the laser's rays crossed too, 217 of
+    21606 (1.0 %), 106 (0.49 %) with the swept frames."""
     assert corridor["left_cells"] > 40000
     assert corridor["ghost_cells"] / corridor["left_cells"] <= 0.013
     assert corridor["left_cells_seen_through"] > 10000
