@@ -20,6 +20,8 @@ import numpy as np
 
 from .errors import CalibrationError
 
+SHAFT_HOLE = 0.008  # m: radius of the hole in the disk for the head's shaft
+
 
 def de_bruijn(order: int = 5) -> str:
     """The lexicographically least binary de Bruijn sequence of the given order, as '0'/'1'.
@@ -96,6 +98,20 @@ class EncoderDisk:
         """Printed value (0 or 1) of the ring at `base_link` angles (rad)."""
         index = np.floor((np.asarray(angle) - self.zero_offset) / self.sector_angle)
         return self.bits()[index.astype(np.int64) % self.sectors]
+
+    def ray_distance(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Distance along rays in `base_link` (directions (N, 3), origins (3,) common to
+        all or (N, 3)) to the disk, inf where they miss it: the flat ring between the
+        shaft's hole and `outer_radius` at `height`, exact, seen from above by the camera
+        and from below by the laser."""
+        origins = np.broadcast_to(origins, directions.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (self.height - origins[:, 2]) / directions[:, 2]
+        x = origins[:, 0] + t * directions[:, 0]
+        y = origins[:, 1] + t * directions[:, 1]
+        radius2 = x * x + y * y
+        hit = (t > 0.0) & (radius2 <= self.outer_radius ** 2) & (radius2 >= SHAFT_HOLE ** 2)
+        return np.where(hit, t, np.inf)
 
 
 # ---------------------------------------------------------------------------------

@@ -25,7 +25,6 @@ from .texture import surface_axes
 
 FLOOR_MARGIN = 60.0  # m of floor beyond the scene on every side
 FACET_LENGTH = 0.02  # m: a cylinder gets a side per this much circumference
-DISK_HOLE = 0.008  # m: radius of the hole for the head's shaft
 NO_HIT = -1
 
 
@@ -300,26 +299,6 @@ def owner_reflectance(scene: Scene) -> np.ndarray:
     return np.array([1.0, *(0.0 if o.material == "mirror" else o.reflectance for o in owners)])
 
 
-def disk_distance(disk: EncoderDisk, origins_base: np.ndarray,
-                  directions_base: np.ndarray) -> np.ndarray:
-    """Distance along rays in `base_link` to the encoder disk (inf where they miss it).
-
-    origins_base: (3,) common to all rays or (N, 3).
-
-    The disk is the flat ring between the shaft hole and `outer_radius` at the disk's
-    height, exact (no tessellation), seen from above by the camera and from below by
-    the laser.
-    """
-    origins_base = np.broadcast_to(origins_base, directions_base.shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (disk.height - origins_base[:, 2]) / directions_base[:, 2]
-    x = origins_base[:, 0] + t * directions_base[:, 0]
-    y = origins_base[:, 1] + t * directions_base[:, 1]
-    radius2 = x * x + y * y
-    hit = (t > 0.0) & (radius2 <= disk.outer_radius ** 2) & (radius2 >= DISK_HOLE ** 2)
-    return np.where(hit, t, np.inf)
-
-
 def rotate(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """(N, 3) vectors times rotation.T, without BLAS.
 
@@ -375,6 +354,7 @@ class World:
         plane, t = self.world.cast(transform_per_frame(map_from, frame, origins, True),
                                    transform_per_frame(map_from, frame, directions, False),
                                    threads)
-        t_disk = disk_distance(self.disk, transform_per_frame(base_from, frame, origins, True),
-                               transform_per_frame(base_from, frame, directions, False))
+        t_disk = self.disk.ray_distance(transform_per_frame(base_from, frame, origins, True),
+                                        transform_per_frame(base_from, frame, directions,
+                                                            False))
         return plane, t, t_disk

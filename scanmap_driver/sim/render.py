@@ -23,7 +23,7 @@ import numpy as np
 
 from ..scanner_model import ScannerModel
 from .camera_effects import SimCameraConfig, encode_mjpg, expose
-from .geometry import World, disk_distance, rotate
+from .geometry import World, rotate
 from .hitmap import HitMap, hit_map
 from .laser_light import defocus_diameter, draw_stripes, speckle, stripe_sigma
 from .laser_stripe import (
@@ -149,8 +149,9 @@ class Renderer:
         for heading in np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False):
             _, base_head = head_poses(self.model, np.eye(4)[None], np.array([heading]))
             rotation, shift = base_head[0, :3, :3], base_head[0, :3, 3]
-            t = disk_distance(self.model.encoder, rotation @ self.rays.centre + shift,
-                              rotate(directions, rotation)).reshape(height, width)
+            t = self.model.encoder.ray_distance(rotation @ self.rays.centre + shift,
+                                                rotate(directions, rotation)
+                                                ).reshape(height, width)
             cols = np.flatnonzero(np.isfinite(t).any(axis=0))
             if cols.size:
                 first = min(first, int(cols[0]))
@@ -260,7 +261,7 @@ class Renderer:
         rotation, shift = base_head[:3, :3], base_head[:3, 3]
         directions = rotate(self._disk_directions.reshape(-1, 3), rotation)
         origin = rotation @ self.rays.centre + shift
-        t = disk_distance(self.model.encoder, origin, directions).reshape(height, -1)
+        t = self.model.encoder.ray_distance(origin, directions).reshape(height, -1)
         on_disk = t < scene_t[:, first:]
         if not on_disk.any():
             return coverage
