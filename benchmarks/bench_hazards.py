@@ -140,7 +140,7 @@ from scanmap_driver.sim.simulate import simulate_recording
 
 ROBOT = RobotShape()
 MODEL = reference_scanner()  # built once, as a Mapper builds its model (0.4 ms a build)
-PARAMS = FloorConfig()
+PARAMS = FloorConfig().for_scanner(MODEL)  # the floor rules with this scanner's geometry
 MARGIN = 0.5  # m of window around the scene's bounds
 WINDOW = 8.0  # m, side of the window segmented per scan for the timing
 SEE_THROUGH = 2.0  # m from the robot within which a person's former cells are checked

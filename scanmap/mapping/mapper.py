@@ -107,7 +107,8 @@ class Mapper:
                  *, clock: Callable[[], float] = time.monotonic, offline: bool = False,
                  initial_pose: np.ndarray | None = None) -> None:
         self.model = model or reference_scanner()
-        self.config = config or MapperConfig()
+        config = config or MapperConfig()  # the floor rules take this scanner's geometry:
+        self.config = replace(config, floor=config.floor.for_scanner(self.model))
         c = self.config
         self.grid = HeightGrid(c.grid)
         self.registration = ScanOdometry(c.registration, c.noise, initial_pose)

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from scanmap_driver.errors import MapError
+from scanmap_driver.errors import CalibrationError, MapError
+from scanmap_driver.floor_view import floor_view
+from scanmap_driver.scanner_model import ScannerModel
 
 
 @dataclass(frozen=True)
@@ -24,6 +26,9 @@ class RobotShape:
         if self.step_height >= self.height:
             raise MapError(f"RobotShape: step_height {self.step_height} must be below height "
                            f"{self.height}")
+
+
+SCANNER_FIELDS = ("blind_range", "view_range", "emitter_height")  # None: the scanner's
 
 
 @dataclass(frozen=True)
@@ -100,7 +105,10 @@ class FloorConfig:
     every neighbour is FREE that is taken as FREE: a pinhole between the laser's samples
     in floor seen free all round (a hole there shows its far wall as hits, which are not
     FREE). 0.15 m: three cells, the span `interpolated` fills between floor samples.
-    blind_range: the nearest floor (m) the scanner sees from where it stands (1.49 m for
+    blind_range, view_range, emitter_height: the scanner's geometry, None (the default)
+    for what the scanner sees of flat floor (`for_scanner`: the Mapper's scanner model;
+    `segment` alone, the reference scanner's).
+    blind_range: the nearest floor (m) the scanner sees from where it stands (1.495 m for
     the reference scanner, its camera 1 m up): a drop-off's spread keeps to the line of
     sight from the nearest place the robot stood through a cell showing it only where
     that place lies at least this far off. Nearer, it was seen from elsewhere: from one
@@ -108,7 +116,7 @@ class FloorConfig:
     sight and ranges then bound it, the rim's shadow reaching nearer by d /
     (emitter_height + d) of the range of a cell showing the floor missing d deep (at
     least rim_shadow).
-    view_range: the farthest floor (m) the scanner sees (the reference scanner's
+    view_range: the farthest floor (m) the scanner sees (3.999 m: the reference scanner's
     max_range). emitter_height: the laser emitter's height (m) over the floor (0.5 m on
     the reference scanner): its light over a rim reaches d below the floor at
     (emitter_height + d) / emitter_height times the rim's range.
@@ -139,6 +147,30 @@ class FloorConfig:
     floor_probe: float = 0.1
     min_logodds: float = 0.2
     max_pinhole: float = 0.15
-    blind_range: float = 1.5
-    view_range: float = 4.0
-    emitter_height: float = 0.5
+    blind_range: float | None = None
+    view_range: float | None = None
+    emitter_height: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in SCANNER_FIELDS:
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float))
+                                          and math.isfinite(value) and value > 0):
+                raise MapError(f"FloorConfig.{name}: expected a finite number > 0, or None "
+                               f"for the scanner's own, got {value!r}")
+
+    def for_scanner(self, model: ScannerModel) -> FloorConfig:
+        """This config with those of blind_range, view_range and emitter_height left None
+        taken from the floor `model` sees (`scanmap_driver.floor_view`); MapError naming
+        them when it sees none."""
+        unset = [name for name in SCANNER_FIELDS if getattr(self, name) is None]
+        if not unset:
+            return self
+        try:
+            view = floor_view(model)
+        except CalibrationError as exc:
+            raise MapError(f"FloorConfig: {exc}: set {', '.join(unset)}") from None
+        seen = {"blind_range": view.nearest, "view_range": view.farthest,
+                "emitter_height": view.emitter_height}
+        return replace(self, **{name: seen[name] for name in unset})
+

@@ -4,6 +4,7 @@ of what was observed."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -19,6 +20,7 @@ from scanmap.navigation.floor._unseen import unseen_cells
 from scanmap.navigation.floor.config import FloorConfig, RobotShape
 from scanmap.navigation.floor.result import Segmentation
 from scanmap_driver.errors import MapError
+from scanmap_driver.scanner_model import ScannerModel, reference_scanner
 
 
 def segment(layers: CellLayers, robot: RobotShape | None = None,
@@ -40,7 +42,7 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
     an 8 m window).
     """
     robot = robot or RobotShape()
-    params = params or FloorConfig()
+    params = (params or FloorConfig()).for_scanner(_reference_scanner())
     if fallback_floor is not None and not math.isfinite(fallback_floor):
         raise MapError(f"segment: fallback_floor must be a finite height or None, got "
                        f"{fallback_floor}")
@@ -81,6 +83,12 @@ def segment(layers: CellLayers, robot: RobotShape | None = None,
                         floor_height=floor_height, is_floor=is_floor, planes=inner.planes,
                         state=state, points=points, band_logodds=band_logodds,
                         updated=layers.updated, slope=slope)
+
+
+@functools.cache
+def _reference_scanner() -> ScannerModel:
+    """The scanner whose geometry `segment` takes where its FloorConfig leaves it None."""
+    return reference_scanner()
 
 
 def _reach(params: FloorConfig, resolution: float) -> int:
