@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
-from scanmap_driver.errors import CalibrationError, MapError
-from scanmap_driver.floor_view import floor_view
+import numpy as np
+
+from scanmap.grid.unlit import floor_crossings
+from scanmap_driver.errors import MapError
 from scanmap_driver.scanner_model import ScannerModel
 
 
@@ -29,6 +32,7 @@ class RobotShape:
 
 
 SCANNER_FIELDS = ("blind_range", "view_range", "emitter_height")  # None: the scanner's
+HEADINGS = 8  # over a turn, where a tilted or offset head sees the floor unevenly
 
 
 @dataclass(frozen=True)
@@ -106,8 +110,8 @@ class FloorConfig:
     in floor seen free all round (a hole there shows its far wall as hits, which are not
     FREE). 0.15 m: three cells, the span `interpolated` fills between floor samples.
     blind_range, view_range, emitter_height: the scanner's geometry, None (the default)
-    for what the scanner sees of flat floor (`for_scanner`: the Mapper's scanner model;
-    `segment` alone, the reference scanner's).
+    for the floor the scanner measures (`for_scanner`, `floor_seen`: the Mapper's scanner
+    model; `segment` alone, the reference scanner's).
     blind_range: the nearest floor (m) the scanner sees from where it stands (1.495 m for
     the reference scanner, its camera 1 m up): a drop-off's spread keeps to the line of
     sight from the nearest place the robot stood through a cell showing it only where
@@ -116,7 +120,7 @@ class FloorConfig:
     sight and ranges then bound it, the rim's shadow reaching nearer by d /
     (emitter_height + d) of the range of a cell showing the floor missing d deep (at
     least rim_shadow).
-    view_range: the farthest floor (m) the scanner sees (3.999 m: the reference scanner's
+    view_range: the farthest floor (m) the scanner sees (3.997 m: the reference scanner's
     max_range). emitter_height: the laser emitter's height (m) over the floor (0.5 m on
     the reference scanner): its light over a rim reaches d below the floor at
     (emitter_height + d) / emitter_height times the rim's range.
@@ -161,16 +165,33 @@ class FloorConfig:
 
     def for_scanner(self, model: ScannerModel) -> FloorConfig:
         """This config with those of blind_range, view_range and emitter_height left None
-        taken from the floor `model` sees (`scanmap_driver.floor_view`); MapError naming
-        them when it sees none."""
+        taken from the floor `model` measures (`floor_seen`); MapError naming them when it
+        measures none."""
         unset = [name for name in SCANNER_FIELDS if getattr(self, name) is None]
         if not unset:
             return self
-        try:
-            view = floor_view(model)
-        except CalibrationError as exc:
-            raise MapError(f"FloorConfig: {exc}: set {', '.join(unset)}") from None
-        seen = {"blind_range": view.nearest, "view_range": view.farthest,
-                "emitter_height": view.emitter_height}
+        seen = floor_seen(model)
+        if seen is None:
+            raise MapError(f"FloorConfig: scanner {model.name!r} measures no floor (its laser "
+                           f"lights none in its camera's view): set {', '.join(unset)}")
         return replace(self, **{name: seen[name] for name in unset})
 
+
+@functools.lru_cache(maxsize=8)
+def floor_seen(model: ScannerModel) -> dict[str, float] | None:
+    """The floor `model` measures round the robot: the nearest and farthest (blind_range,
+    view_range: m from base_link's z axis) at any of HEADINGS headings, where its laser's
+    line meets the floor z = 0 in its camera's view (`unlit.floor_crossings`: inside the
+    image, the range limits and the ray-to-plane angle, not behind the encoder disk), and
+    its emitter's height over the floor over a turn (emitter_height); None when it
+    measures none. The reference scanner, its camera 1 m up and tilted 18 deg, its emitter
+    0.5 m up: 1.495-3.997 m (its simulator's flat floor: 1.493-4.000 m); a camera 0.6 m up
+    and its emitter 0.3 m: 0.836-3.989 m."""
+    headings = np.arange(HEADINGS) * (2.0 * math.pi / HEADINGS)
+    crossing, _, measured = floor_crossings(model, headings)
+    if not measured.any():
+        return None
+    ranges = np.hypot(crossing[measured][:, 0], crossing[measured][:, 1])
+    emitters = model.head_poses(headings) @ np.array([*model.laser.origin, 1.0])
+    return {"blind_range": float(ranges.min()), "view_range": float(ranges.max()),
+            "emitter_height": float(emitters[:, 2].mean())}
