@@ -246,6 +246,9 @@ def face_cells(scene: Scene, seg: Segmentation, world_from_map: np.ndarray,
     on the region's side alone (random room 11106's ramp, its side on a row of cells'
     lower edges: the 12 cells above, on the ramp, were scored, those below were not)."""
     rows, cols = np.nonzero(cells)
+    out = np.zeros(seg.shape, bool)
+    if not len(rows):  # no ramp cell seen (a short recording): nothing to sample
+        return out
     reach = FACE_MARGIN / seg.resolution
     within = np.linspace(-reach, 1.0 + reach, samples)
     dx, dy = (a.ravel() for a in np.meshgrid(within, within))
@@ -254,7 +257,6 @@ def face_cells(scene: Scene, seg: Segmentation, world_from_map: np.ndarray,
     world = transform_points(world_from_map, np.column_stack(
         [x.ravel(), y.ravel(), np.zeros(x.size)]))
     heights = scene.floor_at(world[:, 0], world[:, 1])[0].reshape(len(rows), -1)
-    out = np.zeros(seg.shape, bool)
     out[rows, cols] = np.ptp(heights, axis=1) > step
     return out
 

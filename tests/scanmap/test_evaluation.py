@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -338,6 +339,19 @@ def test_a_face_on_a_cells_edge_is_found_in_both_cells_it_runs_between(shift):
         assert found[row, along].all()
     inner = round((0.175 - seg.origin[1]) / seg.resolution - 0.5)
     assert not found[inner, along].any()  # a cell away from the side holds none
+
+
+def test_a_map_that_saw_none_of_the_ramps_cells_scores_no_ramp():
+    """A recording that stopped before the robot saw the scene's ramp (the `scanmap map`
+    report of a short one raised in `face_cells`, after the map files were written):
+    no ramp cell is scored, and its F1s are NaN."""
+    scene = builtin_scene("hazards")
+    hazards_raster = truth_raster(scene)
+    seg = segmentation_of(hazards_raster)
+    unseen = np.zeros(seg.shape, bool)
+    assert not evaluation.face_cells(scene, seg, np.eye(4), unseen, 0.05).any()
+    errors = evaluation.map_errors(seg, hazards_raster, np.eye(4), scene, unseen)
+    assert errors["ramp_cells"] == 0 and math.isnan(errors["ramp_traversable_f1"])
 
 
 def test_the_traversable_ramp_f1_leaves_out_the_cells_a_face_crosses():
