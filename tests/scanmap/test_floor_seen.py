@@ -5,7 +5,6 @@ the Mapper)."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,14 +13,11 @@ from scanmap import Mapper
 from scanmap.navigation.floor import FloorConfig
 from scanmap.navigation.floor.config import floor_seen
 from scanmap_driver.errors import MapError
-from scanmap_driver.scanner_model import CameraMount, HeadMount, LaserPlane, reference_scanner
-from scanmap_driver.sim import builtin_scene
-from scanmap_driver.sim.ideal import ideal_scans
+from scanmap_driver.scanner_model import HeadMount, LaserPlane, reference_scanner
+from tests.scanmap.test_unlit import LOW_CAMERA, empty_floor_scan
 
 REFERENCE = reference_scanner()
-LOW = REFERENCE.with_changes(  # a camera 0.6 m up, tilted more; the emitter 0.3 m up
-    camera_mount=CameraMount(position=(-0.05, 0.0, 0.6), tilt=0.45),
-    laser=LaserPlane((-0.05, 0.0, 0.3), REFERENCE.laser.normal), name="low")
+LOW = LOW_CAMERA
 RAISED = REFERENCE.with_changes(  # the head 0.2 m up, off the robot's centre
     head_mount=HeadMount(position=(0.1, 0.05, 0.2)), name="raised")
 
@@ -29,9 +25,7 @@ RAISED = REFERENCE.with_changes(  # the head 0.2 m up, off the robot's centre
 def empty_floor_ranges(model) -> np.ndarray:
     """Horizontal ranges (m, from base_link's z axis) of the points of one ideal scan of
     an empty floor, without peak noise."""
-    empty = replace(builtin_scene("corridor"), objects=(), floor_regions=(),
-                    scan_poses=np.zeros((1, 3)))
-    scan = next(ideal_scans(empty, model, scans=1, pixel_sigma=0.0)).scan
+    scan = empty_floor_scan(model)
     return np.hypot(scan.points[:, 0], scan.points[:, 1])
 
 

@@ -243,8 +243,16 @@ def test_lines_without_a_return_on_the_floor_are_unlit_where_their_floor_points_
             np.testing.assert_allclose(unlit[:, :2], lost[:, :2], atol=0.01)
 
 
-LOW_CAMERA = MODEL.with_changes(camera_mount=CameraMount(position=(-0.05, 0.0, 0.6), tilt=0.45),
-                                laser=LaserPlane((-0.05, 0.0, 0.3), MODEL.laser.normal))
+LOW_CAMERA = MODEL.with_changes(  # a camera 0.6 m up, tilted more; the emitter 0.3 m up
+    camera_mount=CameraMount(position=(-0.05, 0.0, 0.6), tilt=0.45),
+    laser=LaserPlane((-0.05, 0.0, 0.3), MODEL.laser.normal), name="low")
+
+
+def empty_floor_scan(model) -> Scan:
+    """One ideal scan of an empty floor by `model`, without peak noise."""
+    empty = replace(builtin_scene("corridor"), objects=(), floor_regions=(),
+                    scan_poses=np.zeros((1, 3)))
+    return next(ideal_scans(empty, model, scans=1, pixel_sigma=0.0)).scan
 
 
 @pytest.mark.parametrize("model", [MODEL, LOW_CAMERA], ids=["reference", "camera 0.6 m up"])
@@ -255,9 +263,7 @@ def test_each_floor_return_lies_where_its_lines_floor_crossing_is(model):
     plane behind the camera: the reference scanner's far floor on 34 of its lines, a
     camera 0.6 m up on 131 of 487, never judged unlit. (Not the tilted head: its camera
     sees the floor through the disk's shaft hole, which the simulator leaves open.)"""
-    empty = replace(builtin_scene("corridor"), objects=(), floor_regions=(),
-                    scan_poses=np.zeros((1, 3)))
-    scan = next(ideal_scans(empty, model, scans=1, pixel_sigma=0.0)).scan
+    scan = empty_floor_scan(model)
     returns = line_returns(scan, model)
     crossing, _, ok = floor_crossings(model, scan.heading[returns.first])
     to_head = np.linalg.inv(model.head_poses(scan.heading))
