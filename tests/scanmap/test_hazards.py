@@ -618,6 +618,14 @@ def test_a_step_down_whose_face_the_lines_cross_sparsely_is_never_free():
     assert hazard_run(4, scene=step_room(1009), pixel_sigma=0.3)["drop_free_any_scan"] == 0
 
 
+def test_a_rim_point_the_noise_put_in_a_holes_corner_is_never_free():
+    # Mixed room 18405's 31 x 37 cm hole, 72 cm deep, at 0.3 px: seen from 3 m, a point of
+    # its rim landed 3.4 cm off, in the corner cell its two near rims bound; the hole
+    # showed only its far walls' tops, 4-5 cells off, and its cells without a hit stayed
+    # UNKNOWN, so that one-hit cell was floor, FREE at the 14th and 15th scans
+    assert hazard_run(15, scene=mixed_room(18405), pixel_sigma=0.3)["drop_free_any_scan"] == 0
+
+
 @pytest.mark.parametrize("seed, scans", [(2027, 12), (1169, 9)])
 def test_a_cell_below_a_step_read_within_a_step_of_its_edge_is_never_free(seed, scans):
     # Step rooms 2027 and 1169, 5.5 and 6.1 cm down, at 0.3 px: a cell of the floor below
