@@ -14,10 +14,11 @@ from scanmap.navigation.floor import FloorConfig
 from scanmap.navigation.floor.config import floor_seen
 from scanmap_driver.errors import MapError
 from scanmap_driver.scanner_model import HeadMount, LaserPlane, reference_scanner
-from tests.scanmap.test_unlit import LOW_CAMERA, empty_floor_scan
+
+from .test_unlit import LOW_CAMERA as LOW
+from .test_unlit import empty_floor_scan
 
 REFERENCE = reference_scanner()
-LOW = LOW_CAMERA
 RAISED = REFERENCE.with_changes(  # the head 0.2 m up, off the robot's centre
     head_mount=HeadMount(position=(0.1, 0.05, 0.2)), name="raised")
 

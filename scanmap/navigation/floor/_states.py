@@ -14,9 +14,9 @@ rim), and it is not floor on one or two hits within two cells of a drop-off or a
 (at the real extraction's noise, 0.3 px, a rim's or far wall's hits land up to two
 cells inside a hole) or beside a cell without a hit within `max_hole` of such a dip
 through cells without a hit (a hole seen only by its far wall's top), nor floor next
-to a drop-off whose hits reach more than
-`plane_tolerance` below the largest floor plane (the rim and the far wall's top in one
-level), nor floor between two drop-off cells across it; otherwise it is UNKNOWN.
+to a drop-off whose hits reach more than `plane_tolerance` below the largest floor
+plane (the rim and the far wall's top in one level), nor floor between two drop-off
+cells across it; otherwise it is UNKNOWN.
 Occupied means a level with log-odds of at least `min_logodds`: one below it (seen,
 then seen through more often since: where a person walked on) leaves its cell UNKNOWN,
 neither an obstacle nor free. The footprint cells, observed floor or not, are FREE
@@ -104,16 +104,16 @@ def cell_states(layers: CellLayers, robot: RobotShape, params: FloorConfig,
         beside_unseen &= _below_all_floor(layers.nlev, bottom, is_floor & ~dips, 0.0)
     sunken = dips & _below_all_floor(layers.nlev, bottom, is_floor, params.plane_tolerance) \
         | beside_unseen
-    state[scant & (state == FREE) & morphology.dilate(dropped | sunken, 2)] = UNKNOWN
+    near_hole = morphology.dilate(dropped | sunken, 2)
     # and beside cells without a hit within max_hole of such a dip through cells without a
     # hit: a hole seen only by its far wall's top, whose near rim's noisy hits land in it
     # (mixed room 18405 at 0.3 px: a rim point 3.4 cm off, seen from 3 m, in the corner
     # cell two rims bound, 4-5 cells from the far walls: FREE in two scans)
     if sunken.any():
         hitless = (state == UNKNOWN) & (layers.nlev == 0)
-        hole = morphology.geodesic_dilate(morphology.dilate(sunken) & hitless, hitless,
-                                          round(params.max_hole / res))
-        state[scant & (state == FREE) & morphology.dilate(hole)] = UNKNOWN
+        near_hole |= morphology.dilate(morphology.geodesic_dilate(
+            morphology.dilate(sunken) & hitless, hitless, round(params.max_hole / res)))
+    state[scant & (state == FREE) & near_hole] = UNKNOWN
     # and such a cell jutting into space where nothing was seen (five or more of its eight
     # neighbours UNKNOWN without a hit: a corner or a tip): the stripe cut at a black-lined
     # hole's rim and a few cm of registration put a rim hit there (rendered mixed rooms 1
