@@ -573,8 +573,8 @@ def segment_distance(px: float, py: float, ax: float, ay: float, bx: float,
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, path, fp, shift, levels,
-                   static_scans) -> bool:
+def _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
+                   levels, static_scans) -> bool:
     """A level of a static surface and a ray that crossed its cell (ix, iy) only beside
     it: farther than `pass_radius` from the level's mean hit. Static: the level was hit
     in `static_scans` scans or more (a wall, furniture), or a neighbouring cell holds such
@@ -582,11 +582,17 @@ def _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, path, fp, shift, 
     face seen only while the robot came towards it, its corner where a turned face cuts
     the cell near its edge). Where a face cuts a cell, rays through the cell's free part
     must not clear the face; a level seen briefly away from any static one (a person)
-    clears from any pass."""
+    clears from any pass. Nor does a ray near a static level's mean hit clear it where it
+    passes a corner (`_past_corner`, the ray spanning heights [za, zb]): at a turned
+    cabinet's corner the mean hit of the two faces' hits lies within `pass_radius` of
+    both, and rays past the corner cleared it (people room 19002: a corner cut 1-2 cm
+    into its cell FREE at one scan, with or without people)."""
+    static = np.int64(lev_n[li, SCANS]) >= static_scans
     if segment_distance(lev_f[li, MX], lev_f[li, MY], path[0], path[1], path[2],
                         path[3]) <= fp[FP_PASS_RADIUS]:
-        return False
-    return np.int64(lev_n[li, SCANS]) >= static_scans or _beside_seen_in(
+        return static and _past_corner(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb,
+                                       path, fp, shift, levels, static_scans)
+    return static or _beside_seen_in(
         lev_f, lev_n, nlev, tile_index, ix, iy, lev_f[li, LO], lev_f[li, HI], fp[FP_MASK_DZ],
         shift, levels, static_scans)
 
@@ -625,11 +631,41 @@ def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp,
     on one side only. One static neighbour alone (a person's outline) is too little to
     tell a face.
     """
+    if graze <= 0.0:
+        return False
+    found, along, left, right = _static_sides(lev_f, lev_n, nlev, tile_index, li, ix, iy, za,
+                                              zb, path, fp, shift, levels, static_scans,
+                                              graze)
+    return found >= 2 and along and not (left and right)
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _past_corner(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift, levels,
+                 static_scans) -> bool:
+    """Whether a ray (x-y direction path[4:6]) through level record li of cell (ix, iy)
+    passes a static surface's corner or edge beside it: two or more of the neighbouring
+    cells hold a static level at the ray's heights (`_static_sides`), all on one side of
+    the ray's line. A ray that crossed where a static surface stands would have it on
+    both sides; one past its corner has all of it on one side."""
+    found, _, left, right = _static_sides(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb,
+                                          path, fp, shift, levels, static_scans, 0.0)
+    return found >= 2 and left != right
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _static_sides(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp, shift,
+                  levels, static_scans, graze) -> tuple[int, bool, bool, bool]:
+    """Of the 8 cells round cell (ix, iy), those holding a static level (hit in
+    `static_scans` scans or more) that reaches the heights [za, zb] (within a height bin),
+    one mean hit a cell: how many, whether one lies, from level record li's mean hit,
+    within the angle whose sine is `graze` of the ray's x-y direction path[4:6] (ahead or
+    behind, at least half a cell away), and whether one lies left and one right of the
+    ray's line (the others)."""
     res, tol = fp[FP_RES], fp[FP_MASK_DZ]
     dx, dy = path[4], path[5]
     length = np.hypot(dx, dy)
-    if length == 0.0 or graze <= 0.0:
-        return False
+    if length == 0.0:
+        return 0, False, False, False
     ux, uy = dx / length, dy / length
     mx, my = lev_f[li, MX], lev_f[li, MY]
     near2 = 0.25 * res * res
@@ -651,7 +687,7 @@ def _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path, fp,
                 else:
                     right = True
                 break
-    return found >= 2 and along and not (left and right)
+    return found, along, left, right
 
 
 @njit(cache=True, nogil=True, _nrt=False)
@@ -713,8 +749,8 @@ def _pass_cell(lev_f, lev_n, lev_flag, nlev, tile_index, off, ix, iy, za, zb, bi
                     levels, 1, LASER_GRAZE_SIN)):
             continue  # a laser ray: only near the mean hit of a level seen briefly
         hit_now = lev_flag[li] & HIT_FLAG
-        if not hit_now and _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, path,
-                                          fp, shift, levels, static_scans):
+        if not hit_now and _beside_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb,
+                                          path, fp, shift, levels, static_scans):
             continue
         if not hit_now and 2 * np.int64(lev_n[li, SCANS]) >= static_scans \
                 and _grazes_static(lev_f, lev_n, nlev, tile_index, li, ix, iy, za, zb, path,

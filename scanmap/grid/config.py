@@ -40,7 +40,15 @@ class GridConfig:
     3 cells left, not 2); at 5, `people` 94 seen through. Beside a static level (a
     cabinet's end or corner next to its long face), over people rooms 1-6 and 13-30:
     eroded 431 -> 345 cell-scans, FREE 40 -> 13, ghost cell-scans 11741 -> 11973,
-    seen through 1130 -> 1202; `people` 1426 -> 1445 and 38 -> 40.
+    seen through 1130 -> 1202; `people` 1426 -> 1445 and 38 -> 40. Nor does a ray near a
+    static level's mean hit clear it where every static level in the cells round it lies
+    on one side of the ray (two or more): it passed a corner, as at a turned cabinet's,
+    whose two faces' mean hit lies within `pass_radius` of both. Over people rooms
+    18000-18002 and 19000-19002: wall cell-scans FREE 23 -> 0, eroded 252 -> 229, ghost
+    cell-scans 1460 -> 1467, seen through 105 -> 106; rooms 13-30: eroded 386 (none FREE)
+    either way, ghost cell-scans 4950 -> 5020, seen through 420 -> 458 (a person who
+    stood `static_scans` scans is a static blob whose rim cells rays pass on one side);
+    `people` 500 -> 506 and 8 -> 8; the office's grid figures the same.
     graze_angle: nor is such a level (or one hit in at least half `static_scans` scans)
     cleared by a ray within this angle (degrees, x-y; 0 turns the rule off) of the face's
     direction, read from the mean hits of the static levels in the 8 neighbouring cells:
