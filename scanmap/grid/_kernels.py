@@ -29,7 +29,10 @@ Insertion is one scan at a time, in three passes:
    `graze_angle` of the face's direction read from the mean hits of the neighbouring
    cells' static levels: seen from nearly in its plane, a face's cells are crossed
    through their free part close to the mean hit, which lies on the face (a cabinet's
-   end face lost three cells so in a room with people). Guards against eroding surfaces
+   end face lost three cells so in a room with people). Nor is a static level passed by
+   a ray with every static level round it on one side (`_past_corner`): it passed a
+   corner, as at a turned cabinet's, whose two faces' mean hit lies within `pass_radius`
+   of both. Guards against eroding surfaces
    at grazing incidence: the last `clear_margin` metres before the hit clear nothing;
    a level hit in this scan within `protect` metres of the ray's heights is not
    cleared ("occupied wins", as in OctoMap, but per height, so a level wrongly spanning
