@@ -4,6 +4,7 @@ cleared from the map within three scans, and no wall cell ever erodes."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 
@@ -94,6 +95,18 @@ def test_a_static_corner_passed_close_beside_it_does_not_erode():
     (FREE at scan 23, with or without people). All the static levels around such a
     ray lie on one side of it: it passes a corner, it did not cross the surface."""
     measured = people_run(25, scene=people_room(19002))
+    assert measured["wall_cells_eroded"] == 0
+
+
+def test_rays_within_millimetres_of_a_static_corner_do_not_erode_it():
+    """people_room(20001) without its people: a cabinet turned 10.6 deg cuts its corner
+    4 mm into a cell. Once the robot had passed, rays within millimetres of the corner
+    took the cell's static level a miss: the mean hit of the corner's neighbouring cell
+    lay 3 mm off the corner, on the rays' far side of the parallel through the level's
+    mean hit, so the rays did not seem to pass a corner (FREE from scan 33). The sides
+    are now read from the ray's own line, a mean hit within half `pass_radius` of it on
+    neither."""
+    measured = people_run(34, scene=replace(people_room(20001), people=()))
     assert measured["wall_cells_eroded"] == 0
 
 
