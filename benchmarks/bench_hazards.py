@@ -493,10 +493,12 @@ def person_cells(scene: Scene, truth_shape_of: Segmentation, scans: int) -> np.n
 
 
 def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
-               scene: Scene | None = None, rendered: bool = False) -> dict[str, float]:
+               scene: Scene | None = None, rendered: bool = False, empty_run: bool = True
+               ) -> dict[str, float]:
     """Ghost cells and wall erosion on a scene with people (the built-in `people`); wall
-    recall with and without the people (one run where it has none: the wall measures
-    alone); `rendered`: through rendered frames (`rendered_steps`), else ideal scans."""
+    recall with the people and, with `empty_run`, without them (the scene mapped a
+    second time; NaN without it, the same figure for a scene without people, mapped
+    once); `rendered`: through rendered frames (`rendered_steps`), else ideal scans."""
     scene = scene or builtin_scene("people")
     count = len(scene.scan_poses) if scans is None else scans
     raster = truth_raster(scene)
@@ -504,7 +506,7 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
     cut = replace(raster, classes=object_cells(scene, raster, -DEEP_CUT).astype(np.uint8))
     ghosts, checked, eroded, freed, deep, strict, recall = 0, 0, 0, 0, 0, 0, {}
     seen_ghosts, seen_checked = np.zeros(2, int), np.zeros(2, int)  # camera; camera or laser
-    empty = (("empty", replace(scene, people=())),) if scene.people else ()  # else the same
+    empty = (("empty", replace(scene, people=())),) if scene.people and empty_run else ()
     for label, run in (("people", scene), *empty):
         once = None
         for step in (rendered_steps if rendered else mapped)(run, count, seed):
@@ -549,7 +551,8 @@ def people_run(scans: int | None = None, seed: int = 0, linger: int = 3,
             "wall_cells_eroded": eroded, "wall_cells_freed": freed,
             "wall_cells_eroded_deep": deep, "wall_cells_eroded_strict": strict,
             "wall_recall_people": recall["people"],
-            "wall_recall_empty": recall.get("empty", recall["people"])}
+            "wall_recall_empty": recall.get("empty", math.nan if scene.people
+                                            else recall["people"])}
 
 
 def people_rooms(count: int, scans: int | None = None, first: int = 1

@@ -56,7 +56,7 @@ def test_walls_never_erode_where_the_scene_lies_at_a_slant_to_the_cells(dx, dy, 
     wall cell-scans eroded, some to FREE). A level hit in GridConfig.static_scans scans
     is now cleared only by rays near its mean hit."""
     scene = builtin_scene("people").moved(dx, dy, math.radians(yaw))
-    measured = people_run(scene=scene)
+    measured = people_run(scene=scene, empty_run=False)
     assert measured["wall_cells_eroded"] == 0
 
 
@@ -65,7 +65,7 @@ def test_a_face_seen_from_nearly_in_its_plane_does_not_erode():
     the plane of its end face, and rays run along the face through the free part of the
     cells it cuts, near their mean hits (11 wall cell-scans eroded by scan 20, 4 to FREE,
     before GridConfig.graze_angle)."""
-    measured = people_run(20, scene=people_room(6))
+    measured = people_run(20, scene=people_room(6), empty_run=False)
     assert measured["wall_cells_eroded"] == 0
     assert measured["wall_cells_freed"] == 0
 
@@ -75,7 +75,7 @@ def test_an_end_face_seen_only_on_the_way_towards_it_does_not_erode():
     8-9 scans before the robot passes it, then rays through the free part of the cell
     its corner cuts cleared it (28 wall cell-scans eroded from scan 17 while
     GridConfig.static_scans was 10; 8 keeps it)."""
-    measured = people_run(20, scene=people_room(10))
+    measured = people_run(20, scene=people_room(10), empty_run=False)
     assert measured["wall_cells_eroded"] == 0
 
 
@@ -84,7 +84,7 @@ def test_a_cabinets_corner_hit_in_fewer_scans_than_its_face_does_not_erode():
     scans than the long face beside it, was cleared from scan 18 by rays through the
     cell's free part, and its floor hits left it FREE (27 cell-scans): a level beside a
     static one at its heights is passed only near its mean hit."""
-    measured = people_run(20, scene=people_room(15))
+    measured = people_run(20, scene=people_room(15), empty_run=False)
     assert measured["wall_cells_eroded"] == 0
 
 
@@ -94,7 +94,7 @@ def test_a_static_corner_passed_close_beside_it_does_not_erode():
     the robot had passed, rays past the corner cleared the static level over scans 18-23
     (FREE at scan 23, with or without people). All the static levels around such a
     ray lie on one side of it: it passes a corner, it did not cross the surface."""
-    measured = people_run(25, scene=people_room(19002))
+    measured = people_run(25, scene=people_room(19002), empty_run=False)
     assert measured["wall_cells_eroded"] == 0
 
 
@@ -116,4 +116,4 @@ def test_rays_within_millimetres_of_a_static_corner_do_not_erode_it():
                    "no longer OBSTACLE in scans 0-9, none FREE; rooms 13-24: 257 in 7 "
                    "rooms, 13 FREE)")
 def test_an_end_face_hit_in_one_scan_at_the_start_does_not_erode():
-    assert people_run(10, scene=people_room(23))["wall_cells_eroded"] == 0
+    assert people_run(10, scene=people_room(23), empty_run=False)["wall_cells_eroded"] == 0
