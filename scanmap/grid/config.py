@@ -48,7 +48,12 @@ class GridConfig:
     cell-scans 1460 -> 1467, seen through 105 -> 106; rooms 13-30: eroded 386 (none FREE)
     either way, ghost cell-scans 4950 -> 5020, seen through 420 -> 458 (a person who
     stood `static_scans` scans is a static blob whose rim cells rays pass on one side);
-    `people` 500 -> 506 and 8 -> 8; the office's grid figures the same.
+    `people` 500 -> 506 and 8 -> 8; the office's grid figures the same. The sides are
+    read from the ray's own line, a neighbour's mean hit within half `pass_radius` of it
+    on neither (rays within millimetres of a corner had its cell's mean hit on their far
+    side): over people rooms 18000-18002, 19000-19002, 19400-19402 and 20000-20002 wall
+    cell-scans eroded 261 -> 249, FREE 19 -> 7, ghost cell-scans 2884 -> 2907, seen
+    through 269 -> 272; `people` 506 -> 508 and 8 -> 8.
     graze_angle: nor is such a level (or one hit in at least half `static_scans` scans)
     cleared by a ray within this angle (degrees, x-y; 0 turns the rule off) of the face's
     direction, read from the mean hits of the static levels in the 8 neighbouring cells:
