@@ -30,15 +30,15 @@ Insertion is one scan at a time, in three passes:
    cells' static levels: seen from nearly in its plane, a face's cells are crossed
    through their free part close to the mean hit, which lies on the face (a cabinet's
    end face lost three cells so in a room with people). Nor is a static level passed by
-   a ray with every static level round it on one side (`_past_corner`): it passed a
-   corner, as at a turned cabinet's, whose two faces' mean hit lies within `pass_radius`
-   of both. Guards against eroding surfaces
-   at grazing incidence: the last `clear_margin` metres before the hit clear nothing;
-   a level hit in this scan within `protect` metres of the ray's heights is not
-   cleared ("occupied wins", as in OctoMap, but per height, so a level wrongly spanning
-   a gap still loses the passes through the gap); a level loses at most `max_misses`
-   per scan. A level whose log-odds fall to 0 (p = 0.5) is removed: the space is free,
-   and a new hit there is occupied at once.
+   a ray with every static level round it on one side of its line, those within half
+   `pass_radius` of it on neither (`_past_corner`): it passed a corner, as at a turned
+   cabinet's, whose two faces' mean hit lies within `pass_radius` of both. Guards
+   against eroding surfaces at grazing incidence: the last `clear_margin` metres before
+   the hit clear nothing; a level hit in this scan within `protect` metres of the ray's
+   heights is not cleared ("occupied wins", as in OctoMap, but per height, so a level
+   wrongly spanning a gap still loses the passes through the gap); a level loses at
+   most `max_misses` per scan. A level whose log-odds fall to 0 (p = 0.5) is removed:
+   the space is free, and a new hit there is occupied at once.
    The laser's rays, from its emitter to the points it lit, are traced too when given:
    the light's path was free as well, and from the emitter (0.5 m below the camera on
    the reference scanner) they cross the low heights near the robot that the camera's
